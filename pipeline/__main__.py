@@ -1,0 +1,51 @@
+"""Command line: ``python -m pipeline {plan,bench} ...`` (``--help`` on each)."""
+
+import argparse
+import json
+import sys
+
+from .cli import PARAMS_FILE, one_line_errors
+from .params import Params, load_params
+
+
+@one_line_errors
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m pipeline", description=__doc__)
+    commands = parser.add_subparsers(dest="command", required=True)
+    plan = commands.add_parser("plan", help="run every stage on one mesh, outside DVC")
+    plan.add_argument("mesh", help="mesh or point-cloud file, primitive:NAME or pybullet:RELPATH")
+    plan.add_argument("--out", required=True, help="folder for the artefacts and summary.json")
+    plan.add_argument("--scale", type=float, default=1.0, help="factor on the coordinates (0.001 for mm)")
+    plan.add_argument("--seed", type=int, default=None, help="overrides params.yaml's seed")
+    plan.add_argument("--params", default=None,
+                      help=f"params file (default: {PARAMS_FILE} if present, else built-in defaults)")
+    bench = commands.add_parser("bench", help="benchmark medial_axis + mat against voronoi_poles")
+    bench.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    bench.add_argument("--sizes", default="20000,100000,200000", help="surface sample counts, comma-separated")
+    bench.add_argument("--repeats", type=int, default=3, help="runs per case; the median is reported")
+    args = parser.parse_args(argv)
+    if args.command == "plan":
+        return _plan(args)
+    from .bench import run_bench
+
+    run_bench(sizes=[int(size) for size in args.sizes.split(",")], repeats=args.repeats, json_path=args.json)
+
+
+def _plan(args):
+    from pathlib import Path
+
+    from .plan import run_chain, summary, write_plan
+
+    params_path = args.params or (PARAMS_FILE if Path(PARAMS_FILE).is_file() else None)
+    params = load_params(params_path) if params_path else Params()
+    seed = params.seed if args.seed is None else args.seed
+    artefacts, timings = run_chain(args.mesh, params, scale=args.scale, seed=seed,
+                                   progress=lambda line: print(line, file=sys.stderr))
+    result = summary(artefacts, timings, source=args.mesh, scale=args.scale, seed=seed)
+    write_plan(args.out, artefacts, result)
+    print(json.dumps(result["counts"]))
+    print(f"wrote {args.out}/summary.json")
+
+
+if __name__ == "__main__":
+    main()

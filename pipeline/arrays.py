@@ -1,0 +1,44 @@
+"""Small vectorised array helpers shared by the geometry modules."""
+
+import numpy as np
+
+
+def unit_rows(vectors):
+    """Rows of ``vectors`` scaled to unit length; zero rows stay zero.
+
+    Parameters
+    ----------
+    vectors : (n, d) float64
+
+    Returns
+    -------
+    (n, d) float64
+    """
+    norms = np.linalg.norm(vectors, axis=1, keepdims=True)
+    return np.divide(vectors, norms, out=np.zeros_like(vectors), where=norms > 0)
+
+
+def expand_ranges(starts, counts):
+    """Flatten the integer ranges ``[starts[i], starts[i] + counts[i])`` without a Python loop.
+
+    Returns
+    -------
+    owner : (counts.sum(),) int64
+        Index ``i`` of the range each value came from.
+    values : (counts.sum(),) int64
+    """
+    counts = np.asarray(counts, dtype=np.int64)
+    owner = np.repeat(np.arange(len(counts)), counts)
+    first = np.cumsum(counts) - counts
+    values = np.repeat(np.asarray(starts, dtype=np.int64) - first, counts) + np.arange(counts.sum())
+    return owner, values
+
+
+def padded_rows(indptr, values, width, *, fill=-1):
+    """The first ``width`` values of each CSR row as a dense ``(rows, width)`` array padded with ``fill``."""
+    rows = len(indptr) - 1
+    counts = np.diff(indptr)
+    owner, position = expand_ranges(indptr[:-1], np.minimum(counts, width))
+    out = np.full((rows, width), fill, dtype=np.asarray(values).dtype)
+    out[owner, position - indptr[:-1][owner]] = values[position]
+    return out

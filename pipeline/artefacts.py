@@ -1,0 +1,197 @@
+"""Artefact types: one frozen dataclass per stage output, with ``save``/``load`` beside it.
+
+Every artefact is a single ``.npz`` written atomically (temp file in the same folder,
+then ``os.replace``), loadable without pickle. Keys, all in metres and radians, object frame:
+
+``SurfaceSamples`` (``surface.npz``, stage ``sample``)
+    points (n, 3) float64; normals (n, 3) float64, unit, outward; face_index (n,) int64,
+    the triangle each sample lies on (-1 for point clouds); vertices (v, 3) float64 and
+    faces (f, 3) int64 of the validated, scaled mesh (empty for clouds); spacing, the
+    median distance between neighbouring samples; source, the object's origin.
+``MedialAxis`` (``medial_axis.npz``, stage ``medial_axis``)
+    centers (m, 3) float64; radii (m,) float64, the method's ball radii; sample_index (m,)
+    int64, the surface sample the ball was grown from; contacts (m, c) int64, samples the
+    method found on the ball (shrinking ball: p and q; Voronoi poles: the 4 tetrahedron
+    vertices), -1 padded; method.
+``MedialSpheres`` (``spheres.npz``, stage ``mat``)
+    centers (s, 3) float64; radii (s,) float64, distance to the nearest sample; contacts
+    (s, k) int64, touching samples (within r (1 + tau)), nearest first, -1 padded;
+    object_angle (s,) float64, radians in [0, pi].
+``SphereGrid`` (``sphere_grid.npz``, stage ``sphere_grid``)
+    the sphere arrays above plus the cell grid of eq. 1 over the centres: origin (3,),
+    cell_size, dims (3,) int64, order (s,) int64 (sphere ids sorted by cell), cell_start
+    (cells + 1,) int64.
+
+Every file also holds ``schema`` (:data:`SCHEMA_VERSION`), ``kind`` and ``key``: a content
+hash of the stage's inputs and params, so a batch runner can tell a result is reusable.
+"""
+
+import dataclasses
+import hashlib
+import json
+import os
+import tempfile
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ArtefactError
+
+SCHEMA_VERSION = 1
+
+
+def content_key(stage, params, *parents):
+    """Stable hex key of a stage run: stage name, params (a dataclass or mapping), parent keys."""
+    if dataclasses.is_dataclass(params):
+        params = dataclasses.asdict(params)
+    blob = json.dumps([stage, params, list(parents)], sort_keys=True, default=str)
+    return hashlib.sha256(blob.encode()).hexdigest()[:20]
+
+
+def atomic_write(path, write):
+    """Call ``write(file_object)`` on a temp file beside ``path``, then rename it into place.
+
+    A crash or error leaves no file under ``path`` (nor the temp file).
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "wb") as stream:
+            write(stream)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+class _Artefact:
+    """Save/load for frozen dataclasses whose fields are arrays, strings or floats."""
+
+    KIND = ""
+    ARRAYS = {}  # field -> (dtype, columns): columns None for 1-D, 0 for any width
+
+    def __post_init__(self):
+        for name, (dtype, columns) in self.ARRAYS.items():
+            value = np.asarray(getattr(self, name), dtype=dtype)
+            shape_ok = value.ndim == 1 if columns is None else (
+                value.ndim == 2 and (columns == 0 or value.shape[1] == columns))
+            if not shape_ok:
+                wanted = "(n,)" if columns is None else f"(n, {columns or 'k'})"
+                raise ArtefactError(f"{self.KIND}.{name}: expected shape {wanted}, got {value.shape}")
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+
+    def save(self, path):
+        """Write atomically to ``path`` (.npz)."""
+        arrays, meta = {}, {"schema": SCHEMA_VERSION, "kind": self.KIND}
+        for item in dataclasses.fields(self):
+            value = getattr(self, item.name)
+            if item.name in self.ARRAYS:
+                arrays[item.name] = value
+            else:
+                meta[item.name] = value
+        arrays["meta"] = np.array(json.dumps(meta))
+        atomic_write(path, lambda stream: np.savez(stream, **arrays))
+
+    @classmethod
+    def load(cls, path):
+        """Read an artefact written by :meth:`save`; raises ArtefactError on a bad file."""
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                contents = {name: data[name] for name in data.files}
+        except FileNotFoundError:
+            raise ArtefactError(f"{path}: missing (run the stage that makes it first)") from None
+        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
+            raise ArtefactError(f"{path}: not a readable .npz artefact ({err})") from None
+        try:
+            meta = json.loads(str(contents.pop("meta")))
+        except (KeyError, json.JSONDecodeError):
+            raise ArtefactError(f"{path}: no metadata; not written by this pipeline") from None
+        if meta.pop("kind", None) != cls.KIND:
+            raise ArtefactError(f"{path}: is not a {cls.KIND} artefact")
+        if meta.pop("schema", None) != SCHEMA_VERSION:
+            raise ArtefactError(f"{path}: schema version differs from {SCHEMA_VERSION}; rerun its stage")
+        names = {f.name for f in dataclasses.fields(cls)}
+        if set(contents) | set(meta) != names:
+            raise ArtefactError(f"{path}: fields {sorted(set(contents) | set(meta))} "
+                                f"do not match {cls.KIND}")
+        return cls(**contents, **meta)
+
+
+@dataclass(frozen=True)
+class SurfaceSamples(_Artefact):
+    """Oriented surface samples of one object, plus the mesh they came from."""
+
+    points: np.ndarray
+    normals: np.ndarray
+    face_index: np.ndarray
+    vertices: np.ndarray
+    faces: np.ndarray
+    spacing: float
+    source: str
+    key: str
+
+    KIND = "surface_samples"
+    ARRAYS = {"points": (np.float64, 3), "normals": (np.float64, 3), "face_index": (np.int64, None),
+              "vertices": (np.float64, 3), "faces": (np.int64, 3)}
+
+
+@dataclass(frozen=True)
+class MedialAxis(_Artefact):
+    """Medial axis point cloud with each ball's radius and its defining samples."""
+
+    centers: np.ndarray
+    radii: np.ndarray
+    sample_index: np.ndarray
+    contacts: np.ndarray
+    method: str
+    key: str
+
+    KIND = "medial_axis"
+    ARRAYS = {"centers": (np.float64, 3), "radii": (np.float64, None),
+              "sample_index": (np.int64, None), "contacts": (np.int64, 0)}
+
+
+@dataclass(frozen=True)
+class MedialSpheres(_Artefact):
+    """The medial spheres of paper II-B: centre, radius, touching samples, object angle."""
+
+    centers: np.ndarray
+    radii: np.ndarray
+    contacts: np.ndarray
+    object_angle: np.ndarray
+    key: str
+
+    KIND = "medial_spheres"
+    ARRAYS = {"centers": (np.float64, 3), "radii": (np.float64, None),
+              "contacts": (np.int64, 0), "object_angle": (np.float64, None)}
+
+    def __len__(self):
+        return len(self.radii)
+
+
+@dataclass(frozen=True)
+class SphereGrid(_Artefact):
+    """Medial spheres sorted into the cubic cell grid of eq. 1 (see :mod:`pipeline.sphere_grid`)."""
+
+    centers: np.ndarray
+    radii: np.ndarray
+    object_angle: np.ndarray
+    origin: np.ndarray
+    dims: np.ndarray
+    order: np.ndarray
+    cell_start: np.ndarray
+    cell_size: float
+    key: str
+
+    KIND = "sphere_grid"
+    ARRAYS = {"centers": (np.float64, 3), "radii": (np.float64, None), "object_angle": (np.float64, None),
+              "origin": (np.float64, None), "dims": (np.int64, None), "order": (np.int64, None),
+              "cell_start": (np.int64, None)}
+
+    def __len__(self):
+        return len(self.radii)

@@ -1,0 +1,31 @@
+"""Shared plumbing of the command line and the DVC stages: params, errors, exit codes."""
+
+import functools
+import sys
+
+from .errors import PipelineError
+from .params import load_params
+
+PARAMS_FILE = "params.yaml"
+
+
+def one_line_errors(main):
+    """Run ``main``; a PipelineError prints ``error: <message>`` on stderr and exits 2."""
+
+    @functools.wraps(main)
+    def wrapper(*args, **kwargs):
+        try:
+            return main(*args, **kwargs)
+        except PipelineError as err:
+            print(f"error: {err}", file=sys.stderr)
+            raise SystemExit(2) from None
+        except KeyboardInterrupt:
+            print("error: interrupted", file=sys.stderr)
+            raise SystemExit(130) from None
+
+    return wrapper
+
+
+def params(path=PARAMS_FILE):
+    """The validated params file (see :mod:`pipeline.params`)."""
+    return load_params(path)

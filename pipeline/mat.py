@@ -1,0 +1,225 @@
+"""Medial sphere reconstruction from a medial axis point cloud (stage ``mat``, paper II-A).
+
+For every medial axis point the sphere's radius is the distance to the nearest surface
+sample, its touching points are the samples within ``r (1 + tau)`` of the centre, and its
+object angle is the largest angle between two touching points seen from the centre
+(paper II-B). The contact set is the ``max_contacts`` nearest touching samples plus the
+samples that defined the ball in the medial axis method (shrinking ball: p and q; Voronoi
+poles: the 4 tetrahedron vertices) when they touch: the nearest samples alone can all lie
+on one side of a thick part, the defining ones never do. Of a merged group, the three
+defining samples spread widest are kept (:func:`spread_contacts`).
+
+Balls of nearly the same centre and radius (:func:`merge_close`) are merged first: on a
+tube or a sphere many samples grow the same ball, and one copy carries the information.
+"""
+
+import numpy as np
+from pykdtree.kdtree import KDTree
+
+from .arrays import padded_rows, unit_rows
+from .artefacts import MedialSpheres, content_key
+from .cell_grid import CellGrid
+from .checks import as_points
+from .errors import DegenerateGeometryError
+
+_ANGLE_CHUNK = 1 << 14
+
+
+def merge_close(centers, radii, *, absolute, relative):
+    """Group balls of nearly the same centre and radius; one representative per group.
+
+    Balls fall in the same group when their radii share a bin of relative width
+    ``relative`` and their centres a voxel of edge ``max(absolute, relative * r)``.
+
+    Parameters
+    ----------
+    centers : (m, 3) float64
+    radii : (m,) float64, > 0
+    absolute : float, metres
+    relative : float, fraction of the radius
+
+    Returns
+    -------
+    keep : (s,) int64
+        The first ball of every group, in input order.
+    group : (m,) int64
+        For every ball, the position in ``keep`` of its representative.
+    """
+    if absolute <= 0 and relative <= 0:
+        return np.arange(len(centers)), np.arange(len(centers))
+    if relative > 0:
+        level = np.floor(np.log(radii) / np.log1p(relative))
+        edge = np.maximum(absolute, relative * np.exp(level * np.log1p(relative)))
+    else:
+        level, edge = np.zeros(len(radii)), np.full(len(radii), absolute)
+    cells = np.column_stack([level, np.floor(centers / edge[:, None])]).astype(np.int64)
+    keys = np.ascontiguousarray(cells).view(np.dtype((np.void, cells.itemsize * 4))).ravel()
+    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), dtype=np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+    return np.sort(first), rank[inverse]
+
+
+def spread_contacts(centers, surface_points, group, defining):
+    """Three defining samples per group whose directions from the centre are spread widest.
+
+    A double sweep over the group's defining samples: start at the first, take the one
+    at the largest angle from it, then the one at the largest angle from that. The three
+    bound the group's object angle from below and usually attain it (a merged ball at a
+    sphere's centre is defined by samples all over the surface).
+
+    Parameters
+    ----------
+    centers : (s, 3) float64, one per group
+    surface_points : (n, 3) float64
+    group : (m,) int64, group of every merged ball
+    defining : (m, c) int64, -1 padded
+
+    Returns
+    -------
+    (s, 3) int64, -1 where a group has no defining sample
+    """
+    owner = np.repeat(group, defining.shape[1])
+    sample = defining.ravel()
+    valid = sample >= 0
+    owner, sample = owner[valid], sample[valid]
+    direction = unit_rows(surface_points[sample] - centers[owner])
+    order = np.argsort(owner, kind="stable")
+    owner, sample, direction = owner[order], sample[order], direction[order]
+    picked = np.full((len(centers), 3), -1, dtype=np.int64)
+    present, first = np.unique(owner, return_index=True)
+    anchor = first
+    picked[present, 0] = sample[anchor]
+    for column in (1, 2):
+        cosine = (direction * direction[np.repeat(anchor, np.diff(np.r_[first, len(owner)]))]).sum(axis=1)
+        widest = np.lexsort((cosine, owner))  # per group, smallest cosine first
+        anchor = widest[first]
+        picked[present, column] = sample[anchor]
+    return picked
+
+
+def nearest_samples(surface_points, centers, *, count, search="kdtree", kdtree_eps=0.0, cell_density=4.0):
+    """The ``count`` nearest surface samples of every centre, nearest first.
+
+    Parameters
+    ----------
+    surface_points : (n, 3) float64
+    centers : (m, 3) float64
+    search : {'kdtree', 'grid'}
+        pykdtree, or the paper's cell grid (:class:`pipeline.cell_grid.CellGrid`, exact).
+    kdtree_eps : float
+        Approximate-NN slack of the kd-tree: the k-th returned sample is within (1 + eps)
+        of the true k-th distance. Exact queries stall where many samples are equidistant
+        (a sphere's centre, a tube's axis).
+
+    Returns
+    -------
+    distances : (m, count) float64, inf where fewer samples exist
+    indices : (m, count) int64, -1 where fewer samples exist
+    """
+    count = min(count, len(surface_points))
+    if search == "kdtree":
+        distances, indices = KDTree(surface_points).query(centers, k=count, eps=kdtree_eps)
+        return distances.reshape(len(centers), count), indices.reshape(len(centers), count).astype(np.int64)
+    grid = CellGrid.build(surface_points, cell_density=cell_density)
+    nearest_distance, _ = grid.nearest(centers)
+    # every sample within twice the nearest distance holds the count nearest when the
+    # surface is sampled densely; grow the radius for the few centres that lack them
+    radius = 2.0 * nearest_distance + grid.cell_size
+    indices = np.full((len(centers), count), -1, dtype=np.int64)
+    distances = np.full((len(centers), count), np.inf)
+    active = np.arange(len(centers))
+    while active.size:
+        indptr, hits, hit_distance = grid.query_radius(centers[active], radius[active])
+        enough = np.diff(indptr) >= count
+        indices[active[enough]] = padded_rows(indptr, hits, count)[enough]
+        distances[active[enough]] = padded_rows(indptr, hit_distance, count, fill=np.inf)[enough]
+        active = active[~enough]
+        radius[active] *= 2.0
+    return distances, indices
+
+
+def object_angle(centers, surface_points, contacts):
+    """Largest angle between two contacts seen from the centre, radians in [0, pi].
+
+    Parameters
+    ----------
+    centers : (m, 3) float64
+    surface_points : (n, 3) float64
+    contacts : (m, k) int64, -1 padded
+
+    Returns
+    -------
+    (m,) float64; 0 where fewer than two contacts
+    """
+    angles = np.zeros(len(centers))
+    for start in range(0, len(centers), _ANGLE_CHUNK):
+        block = slice(start, start + _ANGLE_CHUNK)
+        valid = contacts[block] >= 0
+        direction = surface_points[np.where(valid, contacts[block], 0)] - centers[block, None, :]
+        direction = unit_rows(direction.reshape(-1, 3)).reshape(direction.shape)
+        cosine = np.einsum("mki,mli->mkl", direction, direction)
+        cosine[~(valid[:, :, None] & valid[:, None, :])] = 1.0
+        angles[block] = np.arccos(np.clip(cosine.min(axis=(1, 2)), -1.0, 1.0))
+    return angles
+
+
+def reconstruct(surface, axis, *, tau=0.01, max_contacts=8, merge_factor=0.5, merge_relative=0.01, search="kdtree",
+                kdtree_eps=0.2, cell_density=4.0):
+    """The ``mat`` stage as a pure function: medial spheres from samples and medial axis.
+
+    Parameters
+    ----------
+    surface : SurfaceSamples
+    axis : MedialAxis
+    tau : float
+        Relative slack of the touching test, ``|p - X| <= r (1 + tau)``.
+    max_contacts : int
+        Nearest touching samples kept per sphere (plus the method's defining samples).
+    merge_factor : float
+        Smallest merge distance, in median sample spacings.
+    merge_relative : float
+        Merge distance and radius bin as a fraction of the radius.
+    search : {'kdtree', 'grid'}
+    kdtree_eps : float
+        Approximate-NN slack of the kd-tree search. The radius stays exact to the medial
+        axis method's accuracy: it is the smaller of the method's ball radius (the
+        distance to its own sample) and the nearest distance found.
+    cell_density : float
+        C of eq. 1 for the grid search.
+
+    Returns
+    -------
+    MedialSpheres
+    """
+    params = dict(tau=tau, max_contacts=max_contacts, merge_factor=merge_factor, merge_relative=merge_relative,
+                  search=search,
+                  kdtree_eps=kdtree_eps, cell_density=cell_density)
+    points = surface.points
+    centers = as_points("medial axis centers", axis.centers)
+    keep, group = merge_close(centers, axis.radii, absolute=merge_factor * surface.spacing, relative=merge_relative)
+    defining = spread_contacts(centers[keep], points, group, axis.contacts)
+    centers = centers[keep]
+    distances, nearest = nearest_samples(points, centers, count=max_contacts, search=search,
+                                         kdtree_eps=kdtree_eps, cell_density=cell_density)
+    radii = np.minimum(distances[:, 0], axis.radii[keep])
+    touch_limit = radii[:, None] * (1.0 + tau)
+    # an inner ball sees its nearest sample from behind that sample's outward normal; a
+    # ball that never shrank into the object (a stray normal) sees it from the front
+    inside = ((centers - points[nearest[:, 0]]) * surface.normals[nearest[:, 0]]).sum(axis=1) < 0
+    nearest = np.where(distances <= touch_limit, nearest, -1)
+    safe = np.where(defining >= 0, defining, 0)
+    defining_distance = np.linalg.norm(points[safe] - centers[:, None, :], axis=2)
+    defining = np.where((defining >= 0) & (defining_distance <= touch_limit), defining, -1)
+    # drop defining samples already among the nearest so each contact is listed once
+    defining[(defining[:, :, None] == nearest[:, None, :]).any(axis=2)] = -1
+    contacts = np.concatenate([nearest, defining], axis=1)
+    # compact: valid contacts first, in order (nearest first, then defining)
+    contacts = np.take_along_axis(contacts, np.argsort(contacts < 0, axis=1, kind="stable"), axis=1)
+    solid = (radii > 0) & inside
+    if not solid.any():
+        raise DegenerateGeometryError(f"{surface.source}: no medial sphere lies inside the surface")
+    centers, radii, contacts = centers[solid], radii[solid], contacts[solid]
+    return MedialSpheres(centers=centers, radii=radii, contacts=contacts,
+                         object_angle=object_angle(centers, points, contacts),
+                         key=content_key("mat", params, surface.key, axis.key))

@@ -1,0 +1,179 @@
+"""Typed, validated params: one frozen dataclass per ``params.yaml`` section.
+
+These defaults are the project's single documented place for tuning constants and
+tolerances; ``params.yaml`` overrides them. An unknown key, a missing section or a
+value of the wrong type fails with the file, section and key in the message.
+"""
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from .errors import BadParamsError
+
+
+@dataclass(frozen=True)
+class SampleParams:
+    """Surface sampling (stage ``sample``)."""
+
+    count: int = 20000
+    """Number of area-uniform surface samples."""
+    sharp_angle_deg: float = 30.0
+    """Dihedral angle above which an edge is a crease: normals are not smoothed across it."""
+    min_extent_m: float = 0.005
+    """Smallest accepted bounding-box diagonal after scaling; below it the units are wrong."""
+    max_extent_m: float = 5.0
+    """Largest accepted bounding-box diagonal after scaling (a mesh in mm reads as 1000x too big)."""
+    cloud_normal_neighbours: int = 30
+    """k of the kNN plane fit when a point cloud has no normals."""
+
+    def __post_init__(self):
+        _require(self.count >= 100, "sample", "count", "must be >= 100")
+        _require(0 < self.sharp_angle_deg < 180, "sample", "sharp_angle_deg", "must be in (0, 180)")
+        _require(0 < self.min_extent_m < self.max_extent_m, "sample", "min_extent_m",
+                 "must be positive and below max_extent_m")
+        _require(self.cloud_normal_neighbours >= 5, "sample", "cloud_normal_neighbours", "must be >= 5")
+
+
+@dataclass(frozen=True)
+class MedialAxisParams:
+    """Medial axis point cloud (stage ``medial_axis``)."""
+
+    method: str = "shrinking_ball"
+    """``shrinking_ball`` (default, Ma et al. 2012) or ``voronoi_poles`` (Qhull inner poles, reference)."""
+    kdtree_eps: float = 0.2
+    """Approximate-NN slack of the shrinking-ball queries (facts.md 5: exact queries stall on tubes)."""
+    min_chord_factor: float = 4.0
+    """Stop shrinking when the two contacts are closer than this many median sample spacings."""
+    min_separation_deg: float = 20.0
+    """Stop shrinking when the two contacts are closer than this angle seen from the new centre."""
+    max_iterations: int = 30
+
+    def __post_init__(self):
+        _require(self.method in ("shrinking_ball", "voronoi_poles"), "medial_axis", "method",
+                 f"must be 'shrinking_ball' or 'voronoi_poles', got {self.method!r}")
+        _require(self.kdtree_eps >= 0, "medial_axis", "kdtree_eps", "must be >= 0")
+        _require(self.min_chord_factor >= 0, "medial_axis", "min_chord_factor", "must be >= 0")
+        _require(0 <= self.min_separation_deg < 180, "medial_axis", "min_separation_deg", "must be in [0, 180)")
+        _require(self.max_iterations >= 1, "medial_axis", "max_iterations", "must be >= 1")
+
+
+@dataclass(frozen=True)
+class MatParams:
+    """Medial sphere reconstruction (stage ``mat``, paper II-A)."""
+
+    tau: float = 0.01
+    """A sample touches a sphere of radius r when it lies within r (1 + tau) of the centre."""
+    max_contacts: int = 8
+    """At most this many nearest touching samples are kept per sphere."""
+    merge_factor: float = 0.5
+    """Balls whose centres share a voxel of this many median sample spacings (at least) merge."""
+    merge_relative: float = 0.01
+    """...and whose radii agree within this fraction; the voxel grows to this fraction of r."""
+    search: str = "kdtree"
+    """Nearest-surface-point search: ``kdtree`` (pykdtree) or ``grid`` (the paper's cell grid)."""
+    kdtree_eps: float = 0.2
+    """Approximate-NN slack of the kd-tree search (exact queries stall on spheres and tubes)."""
+    cell_density: float = 4.0
+    """C of eq. 1 for the ``grid`` search: expected samples per cell (4 general, 2 thin objects)."""
+
+    def __post_init__(self):
+        _require(0 <= self.tau < 1, "mat", "tau", "must be in [0, 1)")
+        _require(self.max_contacts >= 2, "mat", "max_contacts", "must be >= 2")
+        _require(self.merge_factor >= 0, "mat", "merge_factor", "must be >= 0")
+        _require(0 <= self.merge_relative < 1, "mat", "merge_relative", "must be in [0, 1)")
+        _require(self.search in ("kdtree", "grid"), "mat", "search",
+                 f"must be 'kdtree' or 'grid', got {self.search!r}")
+        _require(self.kdtree_eps >= 0, "mat", "kdtree_eps", "must be >= 0")
+        _require(self.cell_density > 0, "mat", "cell_density", "must be > 0")
+
+
+@dataclass(frozen=True)
+class SphereGridParams:
+    """Grid of medial spheres (stage ``sphere_grid``, paper II-B)."""
+
+    cell_density: float = 4.0
+    """C of eq. 1: expected sphere centres per cell."""
+
+    def __post_init__(self):
+        _require(self.cell_density > 0, "sphere_grid", "cell_density", "must be > 0")
+
+
+@dataclass(frozen=True)
+class Params:
+    """Every section of ``params.yaml``."""
+
+    seed: int = 0
+    objects: dict = field(default_factory=dict)
+    sample: SampleParams = field(default_factory=SampleParams)
+    medial_axis: MedialAxisParams = field(default_factory=MedialAxisParams)
+    mat: MatParams = field(default_factory=MatParams)
+    sphere_grid: SphereGridParams = field(default_factory=SphereGridParams)
+
+
+SECTIONS = {f.name: f.type for f in dataclasses.fields(Params) if dataclasses.is_dataclass(f.type)}
+
+
+def _require(condition, section, key, problem):
+    if not condition:
+        raise BadParamsError(f"params: {section}.{key} {problem}")
+
+
+def section_from_mapping(cls, mapping, *, section, source="params"):
+    """Build the dataclass ``cls`` from a mapping, rejecting unknown keys and bad types."""
+    if mapping is None:
+        mapping = {}
+    if not isinstance(mapping, dict):
+        raise BadParamsError(f"{source}: section '{section}' must be a mapping, got {type(mapping).__name__}")
+    known = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(mapping) - set(known))
+    if unknown:
+        raise BadParamsError(f"{source}: {section}: unknown key {unknown[0]!r} (known: {', '.join(known)})")
+    values = {}
+    for key, value in mapping.items():
+        expected = known[key].type
+        if expected is float and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if expected in (int, float, str) and (type(value) is not expected):
+            raise BadParamsError(f"{source}: {section}.{key} must be {expected.__name__}, got {value!r}")
+        if expected is float and not math.isfinite(value):
+            raise BadParamsError(f"{source}: {section}.{key} must be finite, got {value!r}")
+        values[key] = value
+    try:
+        return cls(**values)
+    except BadParamsError as err:
+        raise BadParamsError(f"{source}: {str(err).removeprefix('params: ')}") from None
+
+
+def load_params(path="params.yaml"):
+    """Read and validate the whole params file.
+
+    Returns
+    -------
+    Params
+    """
+    path = Path(path)
+    try:
+        raw = yaml.safe_load(path.read_text())
+    except FileNotFoundError:
+        raise BadParamsError(f"{path}: file not found") from None
+    except yaml.YAMLError as err:
+        problem = str(err).replace("\n", " ")
+        raise BadParamsError(f"{path}: not valid YAML ({problem})") from None
+    if not isinstance(raw, dict):
+        raise BadParamsError(f"{path}: must be a mapping of sections")
+    unknown = sorted(set(raw) - {f.name for f in dataclasses.fields(Params)})
+    if unknown:
+        raise BadParamsError(f"{path}: unknown section {unknown[0]!r}")
+    seed = raw.get("seed", 0)
+    if type(seed) is not int or seed < 0:
+        raise BadParamsError(f"{path}: seed must be a non-negative int, got {seed!r}")
+    objects = raw.get("objects", {}) or {}
+    if not isinstance(objects, dict):
+        raise BadParamsError(f"{path}: objects must be a mapping name -> spec")
+    sections = {name: section_from_mapping(cls, raw.get(name), section=name, source=str(path))
+                for name, cls in SECTIONS.items()}
+    return Params(seed=seed, objects=objects, **sections)
