@@ -6,11 +6,7 @@ object angle is the largest angle between two touching points seen from the cent
 (paper II-B). The contact set is the ``max_contacts`` nearest touching samples plus the
 samples that defined the ball in the medial axis method (shrinking ball: p and q; Voronoi
 poles: the 4 tetrahedron vertices) when they touch: the nearest samples alone can all lie
-on one side of a thick part, the defining ones never do. Of a merged group, the three
-defining samples spread widest are kept (:func:`spread_contacts`).
-
-Balls of nearly the same centre and radius (:func:`merge_close`) are merged first: on a
-tube or a sphere many samples grow the same ball, and one copy carries the information.
+on one side of a thick part, the defining ones never do.
 """
 
 import numpy as np
@@ -23,79 +19,6 @@ from .checks import as_points
 from .errors import DegenerateGeometryError
 
 _ANGLE_CHUNK = 1 << 14
-
-
-def merge_close(centers, radii, *, absolute, relative):
-    """Group balls of nearly the same centre and radius; one representative per group.
-
-    Balls fall in the same group when their radii share a bin of relative width
-    ``relative`` and their centres a voxel of edge ``max(absolute, relative * r)``.
-
-    Parameters
-    ----------
-    centers : (m, 3) float64
-    radii : (m,) float64, > 0
-    absolute : float, metres
-    relative : float, fraction of the radius
-
-    Returns
-    -------
-    keep : (s,) int64
-        The first ball of every group, in input order.
-    group : (m,) int64
-        For every ball, the position in ``keep`` of its representative.
-    """
-    if absolute <= 0 and relative <= 0:
-        return np.arange(len(centers)), np.arange(len(centers))
-    if relative > 0:
-        level = np.floor(np.log(radii) / np.log1p(relative))
-        edge = np.maximum(absolute, relative * np.exp(level * np.log1p(relative)))
-    else:
-        level, edge = np.zeros(len(radii)), np.full(len(radii), absolute)
-    cells = np.column_stack([level, np.floor(centers / edge[:, None])]).astype(np.int64)
-    keys = np.ascontiguousarray(cells).view(np.dtype((np.void, cells.itemsize * 4))).ravel()
-    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
-    rank = np.empty(len(first), dtype=np.int64)
-    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
-    return np.sort(first), rank[inverse]
-
-
-def spread_contacts(centers, surface_points, group, defining):
-    """Three defining samples per group whose directions from the centre are spread widest.
-
-    A double sweep over the group's defining samples: start at the first, take the one
-    at the largest angle from it, then the one at the largest angle from that. The three
-    bound the group's object angle from below and usually attain it (a merged ball at a
-    sphere's centre is defined by samples all over the surface).
-
-    Parameters
-    ----------
-    centers : (s, 3) float64, one per group
-    surface_points : (n, 3) float64
-    group : (m,) int64, group of every merged ball
-    defining : (m, c) int64, -1 padded
-
-    Returns
-    -------
-    (s, 3) int64, -1 where a group has no defining sample
-    """
-    owner = np.repeat(group, defining.shape[1])
-    sample = defining.ravel()
-    valid = sample >= 0
-    owner, sample = owner[valid], sample[valid]
-    direction = unit_rows(surface_points[sample] - centers[owner])
-    order = np.argsort(owner, kind="stable")
-    owner, sample, direction = owner[order], sample[order], direction[order]
-    picked = np.full((len(centers), 3), -1, dtype=np.int64)
-    present, first = np.unique(owner, return_index=True)
-    anchor = first
-    picked[present, 0] = sample[anchor]
-    for column in (1, 2):
-        cosine = (direction * direction[np.repeat(anchor, np.diff(np.r_[first, len(owner)]))]).sum(axis=1)
-        widest = np.lexsort((cosine, owner))  # per group, smallest cosine first
-        anchor = widest[first]
-        picked[present, column] = sample[anchor]
-    return picked
 
 
 def nearest_samples(surface_points, centers, *, count, search="kdtree", kdtree_eps=0.0, cell_density=4.0):
@@ -164,8 +87,7 @@ def object_angle(centers, surface_points, contacts):
     return angles
 
 
-def reconstruct(surface, axis, *, tau=0.01, max_contacts=8, merge_factor=0.5, merge_relative=0.01, search="kdtree",
-                kdtree_eps=0.2, cell_density=4.0):
+def reconstruct(surface, axis, *, tau=0.01, max_contacts=8, search="kdtree", kdtree_eps=0.0, cell_density=4.0):
     """The ``mat`` stage as a pure function: medial spheres from samples and medial axis.
 
     Parameters
@@ -176,10 +98,6 @@ def reconstruct(surface, axis, *, tau=0.01, max_contacts=8, merge_factor=0.5, me
         Relative slack of the touching test, ``|p - X| <= r (1 + tau)``.
     max_contacts : int
         Nearest touching samples kept per sphere (plus the method's defining samples).
-    merge_factor : float
-        Smallest merge distance, in median sample spacings.
-    merge_relative : float
-        Merge distance and radius bin as a fraction of the radius.
     search : {'kdtree', 'grid'}
     kdtree_eps : float
         Approximate-NN slack of the kd-tree search. The radius stays exact to the medial
@@ -192,17 +110,14 @@ def reconstruct(surface, axis, *, tau=0.01, max_contacts=8, merge_factor=0.5, me
     -------
     MedialSpheres
     """
-    params = dict(tau=tau, max_contacts=max_contacts, merge_factor=merge_factor, merge_relative=merge_relative,
-                  search=search,
-                  kdtree_eps=kdtree_eps, cell_density=cell_density)
+    params = dict(tau=tau, max_contacts=max_contacts, search=search, kdtree_eps=kdtree_eps,
+                  cell_density=cell_density)
     points = surface.points
     centers = as_points("medial axis centers", axis.centers)
-    keep, group = merge_close(centers, axis.radii, absolute=merge_factor * surface.spacing, relative=merge_relative)
-    defining = spread_contacts(centers[keep], points, group, axis.contacts)
-    centers = centers[keep]
+    defining = np.array(axis.contacts)
     distances, nearest = nearest_samples(points, centers, count=max_contacts, search=search,
                                          kdtree_eps=kdtree_eps, cell_density=cell_density)
-    radii = np.minimum(distances[:, 0], axis.radii[keep])
+    radii = np.minimum(distances[:, 0], axis.radii)
     touch_limit = radii[:, None] * (1.0 + tau)
     # an inner ball sees its nearest sample from behind that sample's outward normal; a
     # ball that never shrank into the object (a stray normal) sees it from the front

@@ -20,12 +20,16 @@ import numpy as np
 from pykdtree.kdtree import KDTree
 from scipy.spatial import Delaunay
 
+from .arrays import unit_rows
 from .artefacts import MedialAxis, content_key
 from .checks import as_points
 from .errors import BadInputError, DegenerateGeometryError
 
+POLISH_EPS = 0.0  # exact: the polish pass is what makes radii and centres accurate
 
-def shrinking_ball(points, normals, *, eps=0.2, min_chord=0.0, min_separation=0.0, max_iterations=30):
+
+def shrinking_ball(points, normals, *, eps=0.2, min_chord=0.0, min_separation=0.0, max_iterations=30,
+                   samples=None, initial_radii=None):
     """Shrinking-ball medial axis: one inner ball per sample.
 
     A ball touching sample ``p`` with centre ``p - r n`` that contains sample ``q`` is
@@ -44,6 +48,10 @@ def shrinking_ball(points, normals, *, eps=0.2, min_chord=0.0, min_separation=0.
     min_chord : float, metres
     min_separation : float, radians in [0, pi)
     max_iterations : int
+    samples : (k,) int64, optional
+        Grow only these samples' balls (default: all).
+    initial_radii : (k,) float64, optional
+        Start radii (default: twice the bounding-box diagonal); a ball only shrinks.
 
     Returns
     -------
@@ -52,7 +60,7 @@ def shrinking_ball(points, normals, *, eps=0.2, min_chord=0.0, min_separation=0.
     sample_index : (m,) int64
         The sample ``p`` of each ball; samples whose ball never formed are left out.
     second_contact : (m,) int64
-        The sample ``q`` that stopped the ball.
+        The sample ``q`` that stopped the ball (-1 for a given ball that did not change).
     """
     points = as_points("points", points)
     normals = as_points("normals", normals)
@@ -61,9 +69,13 @@ def shrinking_ball(points, normals, *, eps=0.2, min_chord=0.0, min_separation=0.
     tree = KDTree(points)
     count = len(points)
     radii = np.full(count, 2.0 * np.linalg.norm(np.ptp(points, axis=0)))
+    active = np.arange(count) if samples is None else np.asarray(samples, dtype=np.int64)
+    if initial_radii is not None:
+        radii[active] = initial_radii
     second = np.full(count, -1, dtype=np.int64)
     formed = np.zeros(count, dtype=bool)
-    active = np.arange(count)
+    formed[active] = initial_radii is not None  # given balls exist already, they can only shrink
+    grown = active.copy()
     for _ in range(max_iterations):
         if not active.size:
             break
@@ -90,9 +102,82 @@ def shrinking_ball(points, normals, *, eps=0.2, min_chord=0.0, min_separation=0.
         second[moved] = q_index[shrinks]
         formed[moved] = True
         active = moved
-    keep = np.flatnonzero(formed & (second >= 0))
+    keep = grown[formed[grown]]
     centers = points[keep] - radii[keep, None] * normals[keep]
     return centers, radii[keep], keep, second[keep]
+
+
+def merge_close(centers, radii, *, absolute, relative):
+    """Group balls of nearly the same centre and radius; one representative per group.
+
+    Balls fall in the same group when their radii share a bin of relative width
+    ``relative`` and their centres a voxel of edge ``max(absolute, relative * r)``.
+
+    Parameters
+    ----------
+    centers : (m, 3) float64
+    radii : (m,) float64, > 0
+    absolute : float, metres
+    relative : float, fraction of the radius
+
+    Returns
+    -------
+    keep : (s,) int64
+        The first ball of every group, in input order.
+    group : (m,) int64
+        For every ball, the position in ``keep`` of its representative.
+    """
+    if absolute <= 0 and relative <= 0:
+        return np.arange(len(centers)), np.arange(len(centers))
+    if relative > 0:
+        level = np.floor(np.log(radii) / np.log1p(relative))
+        edge = np.maximum(absolute, relative * np.exp(level * np.log1p(relative)))
+    else:
+        level, edge = np.zeros(len(radii)), np.full(len(radii), absolute)
+    cells = np.column_stack([level, np.floor(centers / edge[:, None])]).astype(np.int64)
+    keys = np.ascontiguousarray(cells).view(np.dtype((np.void, cells.itemsize * 4))).ravel()
+    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    rank = np.empty(len(first), dtype=np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+    return np.sort(first), rank[inverse]
+
+
+def spread_contacts(centers, surface_points, group, defining):
+    """Three defining samples per group whose directions from the centre are spread widest.
+
+    A double sweep over the group's defining samples: start at the first, take the one
+    at the largest angle from it, then the one at the largest angle from that. The three
+    bound the group's object angle from below and usually attain it (a merged ball at a
+    sphere's centre is defined by samples all over the surface).
+
+    Parameters
+    ----------
+    centers : (s, 3) float64, one per group
+    surface_points : (n, 3) float64
+    group : (m,) int64, group of every merged ball
+    defining : (m, c) int64, -1 padded
+
+    Returns
+    -------
+    (s, 3) int64, -1 where a group has no defining sample
+    """
+    owner = np.repeat(group, defining.shape[1])
+    sample = defining.ravel()
+    valid = sample >= 0
+    owner, sample = owner[valid], sample[valid]
+    direction = unit_rows(surface_points[sample] - centers[owner])
+    order = np.argsort(owner, kind="stable")
+    owner, sample, direction = owner[order], sample[order], direction[order]
+    picked = np.full((len(centers), 3), -1, dtype=np.int64)
+    present, first = np.unique(owner, return_index=True)
+    anchor = first
+    picked[present, 0] = sample[anchor]
+    for column in (1, 2):
+        cosine = (direction * direction[np.repeat(anchor, np.diff(np.r_[first, len(owner)]))]).sum(axis=1)
+        widest = np.lexsort((cosine, owner))  # per group, smallest cosine first
+        anchor = widest[first]
+        picked[present, column] = sample[anchor]
+    return picked
 
 
 def voronoi_poles(points, normals):
@@ -137,34 +222,57 @@ def voronoi_poles(points, normals):
 
 
 def medial_axis(surface, *, method="shrinking_ball", kdtree_eps=0.2, min_chord_factor=4.0, min_separation_deg=20.0,
-                max_iterations=30):
+                max_iterations=30, merge_factor=0.5, merge_relative=0.01):
     """The ``medial_axis`` stage as a pure function.
+
+    Balls are grown (approximate queries for speed), balls of nearly the same centre and
+    radius merged (:func:`merge_close`: on a tube or a sphere many samples grow the same
+    ball), and each kept shrinking ball polished with exact queries, which the merge made
+    affordable. Each kept ball lists its own samples plus the three defining samples of its
+    group spread widest (:func:`spread_contacts`).
 
     Parameters
     ----------
     surface : SurfaceSamples
     method : {'shrinking_ball', 'voronoi_poles'}
+    kdtree_eps : float
+        Approximate-NN slack of the growing pass.
     min_chord_factor : float
         Minimum chord of the shrinking ball, in median sample spacings.
     min_separation_deg : float
         Minimum angle between the two contacts of a shrinking step, degrees.
+    merge_factor : float
+        Smallest merge voxel, in median sample spacings.
+    merge_relative : float
+        Merge voxel and radius bin as a fraction of the radius.
 
     Returns
     -------
     MedialAxis
     """
     params = dict(method=method, kdtree_eps=kdtree_eps, min_chord_factor=min_chord_factor,
-                  min_separation_deg=min_separation_deg, max_iterations=max_iterations)
+                  min_separation_deg=min_separation_deg, max_iterations=max_iterations,
+                  merge_factor=merge_factor, merge_relative=merge_relative)
+    points, normals = surface.points, surface.normals
+    shrink = dict(min_chord=min_chord_factor * surface.spacing, min_separation=np.radians(min_separation_deg),
+                  max_iterations=max_iterations)
     if method == "shrinking_ball":
-        centers, radii, sample_index, second = shrinking_ball(
-            surface.points, surface.normals, eps=kdtree_eps, min_chord=min_chord_factor * surface.spacing,
-            min_separation=np.radians(min_separation_deg), max_iterations=max_iterations)
-        contacts = np.stack([sample_index, second], axis=1)
+        centers, radii, sample_index, second = shrinking_ball(points, normals, eps=kdtree_eps, **shrink)
+        defining = np.stack([sample_index, second], axis=1)
     elif method == "voronoi_poles":
-        centers, radii, sample_index, contacts = voronoi_poles(surface.points, surface.normals)
+        centers, radii, sample_index, defining = voronoi_poles(points, normals)
     else:
         raise BadInputError(f"medial_axis.method: unknown method {method!r}")
     if not len(centers):
         raise DegenerateGeometryError(f"{surface.source}: no medial ball formed (are the normals outward?)")
-    return MedialAxis(centers=centers, radii=radii, sample_index=sample_index, contacts=contacts,
+    keep, group = merge_close(centers, radii, absolute=merge_factor * surface.spacing, relative=merge_relative)
+    spread = spread_contacts(centers[keep], points, group, defining)
+    centers, radii, sample_index, defining = centers[keep], radii[keep], sample_index[keep], defining[keep]
+    if method == "shrinking_ball":
+        _, radii, _, second = shrinking_ball(points, normals, eps=POLISH_EPS, samples=sample_index,
+                                             initial_radii=radii, **shrink)
+        centers = points[sample_index] - radii[:, None] * normals[sample_index]
+        defining[:, 1] = np.where(second >= 0, second, defining[:, 1])
+    return MedialAxis(centers=centers, radii=radii, sample_index=sample_index,
+                      contacts=np.concatenate([defining, spread], axis=1),
                       method=method, key=content_key("medial_axis", params, surface.key))

@@ -2,9 +2,10 @@
 
 A source string is one of
 
-- ``primitive:NAME`` with shape keywords (metres): ``box`` (extents), ``capsule`` and
-  ``cylinder`` (radius, height), ``sphere`` (radius), ``torus`` (major_radius, minor_radius),
-  ``plate`` (extents; a thin box);
+- ``primitive:NAME`` with shape keywords (metres; defaults in brackets): ``box`` (extents
+  [0.10, 0.06, 0.02]), ``capsule`` (radius 0.02, height 0.10 between the cap centres),
+  ``cylinder`` (radius 0.025, height 0.12), ``sphere`` (radius 0.04), ``torus``
+  (major_radius 0.05, minor_radius 0.012), ``plate`` (extents [0.10, 0.10, 0.006]);
 - ``pybullet:RELPATH``: a mesh shipped in the installed ``pybullet_data`` package;
 - a path to an OBJ/STL/PLY/OFF/GLB mesh, or a PLY point cloud with or without normals.
 
@@ -25,12 +26,14 @@ from .errors import BadInputError
 MESH_SUFFIXES = {".obj", ".stl", ".ply", ".off", ".glb", ".gltf"}
 
 _PRIMITIVES = {
-    "box": lambda extents: trimesh.creation.box(extents=extents),
-    "plate": lambda extents: trimesh.creation.box(extents=extents),
-    "capsule": lambda radius, height: trimesh.creation.capsule(height=height, radius=radius, count=[64, 256]),
-    "cylinder": lambda radius, height: trimesh.creation.cylinder(radius=radius, height=height, sections=256),
-    "sphere": lambda radius: trimesh.creation.icosphere(subdivisions=5, radius=radius),
-    "torus": lambda major_radius, minor_radius: trimesh.creation.torus(
+    "box": lambda extents=(0.10, 0.06, 0.02): trimesh.creation.box(extents=extents),
+    "plate": lambda extents=(0.10, 0.10, 0.006): trimesh.creation.box(extents=extents),
+    "capsule": lambda radius=0.02, height=0.10: trimesh.creation.capsule(height=height, radius=radius,
+                                                                          count=[64, 256]),
+    "cylinder": lambda radius=0.025, height=0.12: trimesh.creation.cylinder(radius=radius, height=height,
+                                                                            sections=256),
+    "sphere": lambda radius=0.04: trimesh.creation.icosphere(subdivisions=5, radius=radius),
+    "torus": lambda major_radius=0.05, minor_radius=0.012: trimesh.creation.torus(
         major_radius=major_radius, minor_radius=minor_radius, major_sections=256, minor_sections=128),
 }
 

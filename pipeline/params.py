@@ -51,6 +51,10 @@ class MedialAxisParams:
     min_separation_deg: float = 20.0
     """Stop shrinking when the two contacts are closer than this angle seen from the new centre."""
     max_iterations: int = 30
+    merge_factor: float = 0.5
+    """Balls whose centres share a voxel of this many median sample spacings (at least) merge."""
+    merge_relative: float = 0.01
+    """...and whose radii agree within this fraction; the voxel grows to this fraction of r."""
 
     def __post_init__(self):
         _require(self.method in ("shrinking_ball", "voronoi_poles"), "medial_axis", "method",
@@ -59,6 +63,8 @@ class MedialAxisParams:
         _require(self.min_chord_factor >= 0, "medial_axis", "min_chord_factor", "must be >= 0")
         _require(0 <= self.min_separation_deg < 180, "medial_axis", "min_separation_deg", "must be in [0, 180)")
         _require(self.max_iterations >= 1, "medial_axis", "max_iterations", "must be >= 1")
+        _require(self.merge_factor >= 0, "medial_axis", "merge_factor", "must be >= 0")
+        _require(0 <= self.merge_relative < 1, "medial_axis", "merge_relative", "must be in [0, 1)")
 
 
 @dataclass(frozen=True)
@@ -69,22 +75,16 @@ class MatParams:
     """A sample touches a sphere of radius r when it lies within r (1 + tau) of the centre."""
     max_contacts: int = 8
     """At most this many nearest touching samples are kept per sphere."""
-    merge_factor: float = 0.5
-    """Balls whose centres share a voxel of this many median sample spacings (at least) merge."""
-    merge_relative: float = 0.01
-    """...and whose radii agree within this fraction; the voxel grows to this fraction of r."""
     search: str = "kdtree"
     """Nearest-surface-point search: ``kdtree`` (pykdtree) or ``grid`` (the paper's cell grid)."""
-    kdtree_eps: float = 0.2
-    """Approximate-NN slack of the kd-tree search (exact queries stall on spheres and tubes)."""
+    kdtree_eps: float = 0.0
+    """Approximate-NN slack of the kd-tree search; 0 = exact radii."""
     cell_density: float = 4.0
     """C of eq. 1 for the ``grid`` search: expected samples per cell (4 general, 2 thin objects)."""
 
     def __post_init__(self):
         _require(0 <= self.tau < 1, "mat", "tau", "must be in [0, 1)")
         _require(self.max_contacts >= 2, "mat", "max_contacts", "must be >= 2")
-        _require(self.merge_factor >= 0, "mat", "merge_factor", "must be >= 0")
-        _require(0 <= self.merge_relative < 1, "mat", "merge_relative", "must be in [0, 1)")
         _require(self.search in ("kdtree", "grid"), "mat", "search",
                  f"must be 'kdtree' or 'grid', got {self.search!r}")
         _require(self.kdtree_eps >= 0, "mat", "kdtree_eps", "must be >= 0")

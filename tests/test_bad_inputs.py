@@ -1,0 +1,150 @@
+"""Bad inputs and params: one clear line naming the file and the problem, no artefact."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def run_sample(tmp_path, spec, extra=None):
+    params = {"objects": {"thing": spec}, "sample": {"count": 2000}}
+    params.update(extra or {})
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
+    result = subprocess.run([sys.executable, "-m", "stages.sample", "thing", "out/surface.npz"], cwd=tmp_path,
+                            capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(REPO)})
+    return result, tmp_path / "out" / "surface.npz"
+
+
+def write_obj(path, vertices, faces):
+    lines = [f"v {x} {y} {z}" for x, y, z in vertices] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)
+
+
+def box_obj(tmp_path, name="box.obj", extents=(0.1, 0.06, 0.02), drop_face=False):
+    box = trimesh.creation.box(extents=extents)
+    faces = box.faces[:-1] if drop_face else box.faces
+    return write_obj(tmp_path / name, box.vertices, faces)
+
+
+def nan_obj(tmp_path):
+    box = trimesh.creation.box(extents=(0.1, 0.1, 0.1))
+    vertices = box.vertices.copy()
+    vertices[0, 0] = np.nan
+    return write_obj(tmp_path / "nan.obj", vertices, box.faces)
+
+
+def flat_obj(tmp_path):
+    # two copies of a square, back to back: closed, but encloses nothing
+    vertices = [[0, 0, 0], [0.1, 0, 0], [0.1, 0.1, 0], [0, 0.1, 0]]
+    return write_obj(tmp_path / "flat.obj", vertices, [[0, 1, 2], [0, 2, 3], [0, 2, 1], [0, 3, 2]])
+
+
+def points_only(tmp_path):
+    (tmp_path / "points.obj").write_text("v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nl 1 2\n")
+    return str(tmp_path / "points.obj")
+
+
+def empty_file(tmp_path):
+    (tmp_path / "empty.stl").write_bytes(b"")
+    return str(tmp_path / "empty.stl")
+
+
+CASES = {
+    "missing file": (lambda tmp: {"source": str(tmp / "nope.obj")}, "file not found"),
+    "empty file": (lambda tmp: {"source": empty_file(tmp)}, "file is empty"),
+    "NaN vertex": (lambda tmp: {"source": nan_obj(tmp)}, "NaN"),
+    "zero volume": (lambda tmp: {"source": flat_obj(tmp)}, None),
+    "millimetres": (lambda tmp: {"source": box_obj(tmp, extents=(100, 60, 20))}, "wrong units"),
+    "no triangles": (lambda tmp: {"source": points_only(tmp)}, None),
+    "unknown format": (lambda tmp: {"source": str(Path(box_obj(tmp)).rename(tmp / "box.xyz"))}, "unsupported format"),
+    "unknown primitive": (lambda tmp: {"source": "primitive:banana"}, "unknown primitive"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_bad_mesh_gives_one_line_and_no_artefact(case, tmp_path):
+    make_spec, expected = CASES[case]
+    result, out = run_sample(tmp_path, make_spec(tmp_path))
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 2, result.stderr
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    assert "Traceback" not in result.stderr
+    if expected:
+        assert expected in lines[0]
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+
+
+def test_open_mesh_message_names_file_and_edges(tmp_path):
+    # a box missing one triangle is repaired by hole filling; one missing a whole face
+    # and a shared edge is not
+    box = trimesh.creation.box(extents=(0.1, 0.06, 0.02))
+    keep = np.abs(box.face_normals[:, 2] - 1) > 1e-9
+    extra = np.vstack([box.vertices, [[0.0, 0.0, 0.05]]])
+    faces = np.vstack([box.faces[keep], [[0, 1, 8]], [[1, 0, 8]], [[0, 8, 1]]])
+    path = write_obj(tmp_path / "lidless.obj", extra, faces)
+    result, out = run_sample(tmp_path, {"source": path})
+    assert result.returncode == 2 and "lidless.obj" in result.stderr and "not closed" in result.stderr
+    assert not out.exists()
+
+
+def test_one_missing_triangle_is_repaired(tmp_path):
+    result, out = run_sample(tmp_path, {"source": box_obj(tmp_path, drop_face=True)})
+    assert result.returncode == 0, result.stderr
+    assert out.exists()
+
+
+def test_two_overlapping_bodies_are_united(tmp_path):
+    from pipeline.artefacts import SurfaceSamples
+
+    first = trimesh.creation.box(extents=(0.06, 0.02, 0.02))
+    second = trimesh.creation.box(extents=(0.02, 0.06, 0.02))
+    both = trimesh.util.concatenate([first, second])
+    result, out = run_sample(tmp_path, {"source": write_obj(tmp_path / "cross.obj", both.vertices, both.faces)})
+    assert result.returncode == 0, result.stderr
+    mesh = trimesh.Trimesh(SurfaceSamples.load(out).vertices, SurfaceSamples.load(out).faces)
+    # union volume of a plus sign: 2 * 0.06*0.02*0.02 - 0.02^3
+    assert mesh.is_watertight and len(mesh.split()) == 1
+    np.testing.assert_allclose(mesh.volume, 2 * 0.06 * 0.02 * 0.02 - 0.02 ** 3, rtol=1e-6)
+
+
+@pytest.mark.parametrize("extra, expected", [
+    ({"mat": {"tua": 0.1}}, "unknown key 'tua'"),
+    ({"mat": {"tau": "big"}}, "mat.tau must be float"),
+    ({"medial_axis": {"method": "cocone"}}, "medial_axis.method must be"),
+    ({"seed": -1}, "seed must be a non-negative int"),
+    ({"bogus": {}}, "unknown section 'bogus'"),
+])
+def test_broken_params_give_one_line(extra, expected, tmp_path):
+    result, out = run_sample(tmp_path, {"source": "primitive:box", "extents": [0.1, 0.06, 0.02]}, extra)
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1 and expected in result.stderr and "params.yaml" in result.stderr
+    assert not out.exists()
+
+
+def test_point_cloud_with_and_without_normals(tmp_path):
+    import open3d
+
+    from pipeline.artefacts import SurfaceSamples
+
+    rng = np.random.default_rng(2)
+    direction = rng.standard_normal((3000, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    for name, normals in [("with.ply", direction), ("without.ply", None)]:
+        cloud = open3d.geometry.PointCloud(open3d.utility.Vector3dVector(0.05 * direction))
+        if normals is not None:
+            cloud.normals = open3d.utility.Vector3dVector(normals)
+        open3d.io.write_point_cloud(str(tmp_path / name), cloud)
+        result, out = run_sample(tmp_path, {"source": str(tmp_path / name)})
+        assert result.returncode == 0, result.stderr
+        surface = SurfaceSamples.load(out)
+        assert len(surface.points) == 3000 and (surface.face_index == -1).all()
+        assert ((surface.normals * direction).sum(axis=1) > 0.95).all()
+        out.unlink()
