@@ -29,17 +29,23 @@ SHAPES = {
 }
 
 
+def _run(surface, method):
+    axis = medial_axis(surface, **{**vars(MedialAxisParams()), "method": method})
+    return reconstruct(surface, axis, **vars(MatParams()))
+
+
 def _measure(surface, method, repeats):
-    times, peaks = [], []
+    """Median wall time of ``repeats`` untraced runs, then one traced run for the peak memory."""
+    times = []
     for _ in range(repeats):
-        tracemalloc.start()
         start = time.perf_counter()
-        axis = medial_axis(surface, **{**vars(MedialAxisParams()), "method": method})
-        spheres = reconstruct(surface, axis, **vars(MatParams()))
+        spheres = _run(surface, method)
         times.append(time.perf_counter() - start)
-        peaks.append(tracemalloc.get_traced_memory()[1])
-        tracemalloc.stop()
-    return float(np.median(times)), max(peaks), spheres
+    tracemalloc.start()
+    _run(surface, method)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    return float(np.median(times)), peak, spheres
 
 
 def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, out=print):

@@ -44,8 +44,9 @@ class MedialAxisParams:
 
     method: str = "shrinking_ball"
     """``shrinking_ball`` (default, Ma et al. 2012) or ``voronoi_poles`` (Qhull inner poles, reference)."""
-    kdtree_eps: float = 0.2
-    """Approximate-NN slack of the shrinking-ball queries (facts.md 5: exact queries stall on tubes)."""
+    kdtree_eps: float = 1.0
+    """Approximate-NN slack of the growing pass (facts.md 5: exact queries stall on tubes); the
+    exact polish of the merged balls restores full accuracy, so a loose slack only saves time."""
     min_chord_factor: float = 4.0
     """Stop shrinking when the two contacts are closer than this many median sample spacings."""
     min_separation_deg: float = 20.0
@@ -77,8 +78,8 @@ class MatParams:
     """At most this many nearest touching samples are kept per sphere."""
     search: str = "kdtree"
     """Nearest-surface-point search: ``kdtree`` (pykdtree) or ``grid`` (the paper's cell grid)."""
-    kdtree_eps: float = 0.0
-    """Approximate-NN slack of the kd-tree search; 0 = exact radii."""
+    kdtree_eps: float = 0.2
+    """Approximate-NN slack of the kd-tree search for touching samples (radii stay exact)."""
     cell_density: float = 4.0
     """C of eq. 1 for the ``grid`` search: expected samples per cell (4 general, 2 thin objects)."""
 
