@@ -17,6 +17,8 @@ def main(argv=None):
     plan.add_argument("--out", required=True, help="folder for the artefacts and summary.json")
     plan.add_argument("--scale", type=float, default=1.0, help="factor on the coordinates (0.001 for mm)")
     plan.add_argument("--seed", type=int, default=None, help="overrides params.yaml's seed")
+    plan.add_argument("--hand", action="append", default=None,
+                      help="built-in hand for the candidates (repeatable; default: params candidates.hands)")
     plan.add_argument("--params", default=None,
                       help=f"params file (default: {PARAMS_FILE} if present, else built-in defaults)")
     bench = commands.add_parser("bench", help="benchmark medial_axis + mat against voronoi_poles")
@@ -39,11 +41,11 @@ def _plan(args):
     params_path = args.params or (PARAMS_FILE if Path(PARAMS_FILE).is_file() else None)
     params = load_params(params_path) if params_path else Params()
     seed = params.seed if args.seed is None else args.seed
-    artefacts, timings = run_chain(args.mesh, params, scale=args.scale, seed=seed,
+    artefacts, timings = run_chain(args.mesh, params, scale=args.scale, seed=seed, hands=args.hand,
                                    progress=lambda line: print(line, file=sys.stderr))
     result = summary(artefacts, timings, source=args.mesh, scale=args.scale, seed=seed)
     write_plan(args.out, artefacts, result)
-    print(json.dumps(result["counts"]))
+    print(json.dumps({**result["counts"], "classes": result["classes"], "candidates": result["candidates"]}))
     print(f"wrote {args.out}/summary.json")
 
 

@@ -22,6 +22,11 @@ then ``os.replace``), loadable without pickle. Keys, all in metres and radians, 
     cell_size, dims (3,) int64, order (s,) int64 (sphere ids sorted by cell), cell_start
     (cells + 1,) int64.
 
+``Symmetry`` (``symmetry.npz``, stage ``classify``)
+    see :class:`pipeline.symmetry.Symmetry`.
+``candidates.parquet`` (stage ``candidates``)
+    one row per candidate grasp and hand; columns in :data:`pipeline.candidates.COLUMNS`.
+
 Every file also holds ``schema`` (:data:`SCHEMA_VERSION`), ``kind`` and ``key``: a content
 hash of the stage's inputs and params, so a batch runner can tell a result is reusable.
 """
@@ -65,6 +70,23 @@ def atomic_write(path, write):
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def write_table(path, table):
+    """Write a pandas DataFrame as parquet, atomically."""
+    atomic_write(path, lambda stream: table.to_parquet(stream, index=False))
+
+
+def read_table(path):
+    """Read a parquet table written by :func:`write_table`; ArtefactError if unreadable."""
+    import pandas as pd
+
+    try:
+        return pd.read_parquet(path)
+    except FileNotFoundError:
+        raise ArtefactError(f"{path}: missing (run the stage that makes it first)") from None
+    except Exception as err:  # noqa: BLE001 - pyarrow raises many types for a bad file
+        raise ArtefactError(f"{path}: not a readable parquet table ({type(err).__name__})") from None
 
 
 class _Artefact:

@@ -81,7 +81,7 @@ class CellGrid:
     def __len__(self):
         return len(self.points)
 
-    def query_radius(self, queries, radius):
+    def query_radius(self, queries, radius, *, sort=True):
         """All points within ``radius`` of each query, nearest first.
 
         Parameters
@@ -89,6 +89,8 @@ class CellGrid:
         queries : (q, 3) float64
         radius : float or (q,) float64
             Inclusive search radius per query.
+        sort : bool
+            Order each query's hits by distance (ties by index); otherwise in cell order.
 
         Returns
         -------
@@ -127,9 +129,9 @@ class CellGrid:
         owner = np.concatenate(owners) if owners else np.zeros(0, np.int64)
         index = np.concatenate(indices) if indices else np.zeros(0, np.int64)
         distance = np.concatenate(distances) if distances else np.zeros(0)
-        sort = np.lexsort((index, distance, owner))
+        order = np.lexsort((index, distance, owner)) if sort else np.argsort(owner, kind="stable")
         indptr = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=len(queries)))])
-        return indptr, index[sort], distance[sort]
+        return indptr, index[order], distance[order]
 
     def nearest(self, queries):
         """Exact nearest point of each query (Bentley's expanding search).

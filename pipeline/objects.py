@@ -5,7 +5,8 @@ A source string is one of
 - ``primitive:NAME`` with shape keywords (metres; defaults in brackets): ``box`` (extents
   [0.10, 0.06, 0.02]), ``capsule`` (radius 0.02, height 0.10 between the cap centres),
   ``cylinder`` (radius 0.025, height 0.12), ``sphere`` (radius 0.04), ``torus``
-  (major_radius 0.05, minor_radius 0.012), ``plate`` (extents [0.10, 0.10, 0.006]);
+  (major_radius 0.05, minor_radius 0.012), ``plate`` (extents [0.10, 0.10, 0.006]), and the
+  procedural ``quadruped`` and ``mug`` of :mod:`pipeline.procedural`;
 - ``pybullet:RELPATH``: a mesh shipped in the installed ``pybullet_data`` package;
 - a path to an OBJ/STL/PLY/OFF/GLB mesh, or a PLY point cloud with or without normals.
 
@@ -47,10 +48,13 @@ def pybullet_path(relative):
 
 def primitive(name, **shape):
     """Build a watertight primitive mesh (metres) by name; see the module docstring."""
-    if name not in _PRIMITIVES:
-        raise BadInputError(f"primitive:{name}: unknown primitive (known: {', '.join(_PRIMITIVES)})")
+    from .procedural import BUILDERS
+
+    builders = {**_PRIMITIVES, **BUILDERS}
+    if name not in builders:
+        raise BadInputError(f"primitive:{name}: unknown primitive (known: {', '.join(builders)})")
     try:
-        return _PRIMITIVES[name](**shape)
+        return builders[name](**shape)
     except TypeError as err:
         raise BadInputError(f"primitive:{name}: bad shape keywords {sorted(shape)} ({err})") from None
 

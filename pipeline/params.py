@@ -104,6 +104,58 @@ class SphereGridParams:
 
 
 @dataclass(frozen=True)
+class ClassifyParams:
+    """Reduced set and neighbourhood PCA (stage ``classify``, paper III-A/B)."""
+
+    min_object_angle_deg: float = 120.0
+    """Spheres with a smaller object angle describe surface detail and are left out."""
+    min_diameter_m: float = 0.0
+    max_diameter_ratio: float = 1.0
+    """Keep d <= ratio x d_max (the paper's object set 2 used 0.3); 1 keeps all."""
+    search_radius: float = 0.05
+    """Neighbourhood radius: a fraction of the object's bounding-box diagonal, or metres."""
+    search_radius_unit: str = "relative"
+    """``relative`` (scales with the object: 1 cm on a 20 cm object) or ``metres``."""
+    rho_axis: float = 0.01
+    rho_plane: float = 0.4
+    isolated_spread: float = 0.05
+    """A neighbourhood spread (sqrt l1) below this x the sphere radius is a spherical part."""
+    pca_cell_fraction: float = 0.25
+    """Neighbourhoods are gathered per cell of this x search radius (exact cell moments); 0 = per sphere."""
+
+    def __post_init__(self):
+        _require(0 <= self.min_object_angle_deg <= 180, "classify", "min_object_angle_deg", "must be in [0, 180]")
+        _require(self.min_diameter_m >= 0, "classify", "min_diameter_m", "must be >= 0")
+        _require(0 < self.max_diameter_ratio <= 1, "classify", "max_diameter_ratio", "must be in (0, 1]")
+        _require(self.search_radius > 0, "classify", "search_radius", "must be > 0")
+        _require(self.search_radius_unit in ("relative", "metres"), "classify", "search_radius_unit",
+                 f"must be 'relative' or 'metres', got {self.search_radius_unit!r}")
+        _require(0 < self.rho_axis < self.rho_plane <= 1, "classify", "rho_axis",
+                 "must satisfy 0 < rho_axis < rho_plane <= 1")
+        _require(self.isolated_spread >= 0, "classify", "isolated_spread", "must be >= 0")
+        _require(0 <= self.pca_cell_fraction <= 1, "classify", "pca_cell_fraction", "must be in [0, 1]")
+
+
+@dataclass(frozen=True)
+class CandidatesParams:
+    """Candidate grasps (stage ``candidates``, paper III-C)."""
+
+    hands: list = field(default_factory=lambda: ["armar3", "barrett"])
+    """Built-in hands to generate candidates for (see :mod:`pipeline.hands`)."""
+    approach_directions: int = 4
+    """Approach directions around a symmetry axis (Simox default 4)."""
+    flipped_candidates: bool = True
+    """Also emit every candidate with P_o = -P_o (Simox default)."""
+
+    def __post_init__(self):
+        from .hands import HANDS
+
+        _require(isinstance(self.hands, list) and self.hands and all(h in HANDS for h in self.hands),
+                 "candidates", "hands", f"must list built-in hands ({', '.join(HANDS)}), got {self.hands!r}")
+        _require(self.approach_directions >= 1, "candidates", "approach_directions", "must be >= 1")
+
+
+@dataclass(frozen=True)
 class Params:
     """Every section of ``params.yaml``."""
 
@@ -113,6 +165,8 @@ class Params:
     medial_axis: MedialAxisParams = field(default_factory=MedialAxisParams)
     mat: MatParams = field(default_factory=MatParams)
     sphere_grid: SphereGridParams = field(default_factory=SphereGridParams)
+    classify: ClassifyParams = field(default_factory=ClassifyParams)
+    candidates: CandidatesParams = field(default_factory=CandidatesParams)
 
 
 SECTIONS = {f.name: f.type for f in dataclasses.fields(Params) if dataclasses.is_dataclass(f.type)}
@@ -138,7 +192,7 @@ def section_from_mapping(cls, mapping, *, section, source="params"):
         expected = known[key].type
         if expected is float and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)
-        if expected in (int, float, str) and (type(value) is not expected):
+        if expected in (int, float, str, bool, list) and (type(value) is not expected):
             raise BadParamsError(f"{source}: {section}.{key} must be {expected.__name__}, got {value!r}")
         if expected is float and not math.isfinite(value):
             raise BadParamsError(f"{source}: {section}.{key} must be finite, got {value!r}")

@@ -8,18 +8,21 @@ from pathlib import Path
 import numpy as np
 
 from . import sphere_grid
-from .artefacts import atomic_write
+from .artefacts import atomic_write, write_table
+from .candidates import generate_for_hands
+from .hands import get_hand
 from .mat import reconstruct
 from .medial_axis import medial_axis
 from .objects import source_key
 from .params import Params
 from .sampling import sample_object
+from .symmetry import CLASSES, classify
 
 ARTEFACT_NAMES = {"sample": "surface.npz", "medial_axis": "medial_axis.npz", "mat": "spheres.npz",
-                  "sphere_grid": "sphere_grid.npz"}
+                  "sphere_grid": "sphere_grid.npz", "classify": "symmetry.npz", "candidates": "candidates.parquet"}
 
 
-def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, progress=None):
+def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, hands=None, progress=None):
     """Compute every stage's artefact for one object, in memory.
 
     Parameters
@@ -29,6 +32,8 @@ def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, prog
     params : Params
     seed : int, optional
         Overrides ``params.seed``.
+    hands : list of str, optional
+        Overrides ``params.candidates.hands``.
     progress : callable(str), optional
         Called with a one-line message after each stage.
 
@@ -38,6 +43,7 @@ def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, prog
     timings_s : dict stage -> seconds
     """
     seed = params.seed if seed is None else seed
+    hand_specs = [get_hand(name) for name in (hands or params.candidates.hands)]  # fail before any work
     artefacts, timings = {}, {}
 
     def timed(stage, compute):
@@ -54,6 +60,10 @@ def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, prog
     timed("mat", lambda: reconstruct(artefacts["sample"], artefacts["medial_axis"],
                                      **dataclasses.asdict(params.mat)))
     timed("sphere_grid", lambda: sphere_grid.build(artefacts["mat"], **dataclasses.asdict(params.sphere_grid)))
+    timed("classify", lambda: classify(artefacts["sphere_grid"], **dataclasses.asdict(params.classify)))
+    timed("candidates", lambda: generate_for_hands(artefacts["classify"], hand_specs,
+                                                   approach_directions=params.candidates.approach_directions,
+                                                   flipped_candidates=params.candidates.flipped_candidates))
     return artefacts, timings
 
 
@@ -72,7 +82,9 @@ def summary(artefacts, timings, *, source, scale, seed):
         },
         "radius_m": {"min": float(spheres.radii.min()), "median": float(np.median(spheres.radii)),
                      "max": float(spheres.radii.max())},
-        "keys": {stage: artefact.key for stage, artefact in artefacts.items()},
+        "classes": dict(zip(CLASSES, np.bincount(artefacts["classify"].class_id, minlength=len(CLASSES)).tolist())),
+        "candidates": {str(hand): int(count) for hand, count in artefacts["candidates"].groupby("hand").size().items()},
+        "keys": {stage: artefact.key for stage, artefact in artefacts.items() if hasattr(artefact, "key")},
         "timings_s": {stage: round(seconds, 4) for stage, seconds in timings.items()},
     }
 
@@ -81,6 +93,9 @@ def write_plan(out_dir, artefacts, summary_dict):
     """Write each artefact under its DVC name and ``summary.json`` into ``out_dir``."""
     out_dir = Path(out_dir)
     for stage, artefact in artefacts.items():
-        artefact.save(out_dir / ARTEFACT_NAMES[stage])
+        if stage == "candidates":
+            write_table(out_dir / ARTEFACT_NAMES[stage], artefact)
+        else:
+            artefact.save(out_dir / ARTEFACT_NAMES[stage])
     text = json.dumps(summary_dict, indent=2).encode()
     atomic_write(out_dir / "summary.json", lambda stream: stream.write(text))

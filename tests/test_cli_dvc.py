@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 import yaml
 
@@ -25,15 +27,19 @@ def test_plan_writes_every_artefact_and_summary(tmp_path):
                   "--params", "params.yaml"], tmp_path)
     assert result.returncode == 0, result.stderr
     names = {path.name for path in (tmp_path / "out").iterdir()}
-    assert names == {"surface.npz", "medial_axis.npz", "spheres.npz", "sphere_grid.npz", "summary.json"}
+    assert names == {"surface.npz", "medial_axis.npz", "spheres.npz", "sphere_grid.npz", "symmetry.npz",
+                     "candidates.parquet", "summary.json"}
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["counts"]["surface_samples"] == 3000 and summary["seed"] == 3
-    assert set(summary["timings_s"]) == {"sample", "medial_axis", "mat", "sphere_grid"}
+    assert set(summary["timings_s"]) == {"sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates"}
+    table = pd.read_parquet(tmp_path / "out" / "candidates.parquet")
+    assert summary["candidates"] == {hand: int((table.hand == hand).sum()) for hand in ("armar3", "barrett")}
+    assert sum(summary["classes"].values()) == len(np.load(tmp_path / "out" / "symmetry.npz")["class_id"])
     # the same seed gives the same artefacts
     again = run([sys.executable, "-m", "pipeline", "plan", "primitive:box", "--out", "again", "--seed", "3",
                  "--params", "params.yaml"], tmp_path)
     assert again.returncode == 0
-    for name in ("surface.npz", "spheres.npz", "sphere_grid.npz"):
+    for name in ("surface.npz", "spheres.npz", "sphere_grid.npz", "symmetry.npz", "candidates.parquet"):
         assert (tmp_path / "out" / name).read_bytes() == (tmp_path / "again" / name).read_bytes()
 
 
@@ -43,6 +49,10 @@ def test_plan_on_bad_mesh_is_one_line(tmp_path):
     result = run([sys.executable, "-m", "pipeline", "plan", "broken.obj", "--out", "out"], tmp_path)
     assert result.returncode == 2 and result.stderr.startswith("error: broken.obj")
     assert result.stderr.count("\n") == 1 and not (tmp_path / "out").exists()
+    unknown = run([sys.executable, "-m", "pipeline", "plan", "primitive:box", "--hand", "shadow", "--out", "out"],
+                  tmp_path)
+    assert unknown.returncode == 2 and unknown.stderr == "error: unknown hand 'shadow' (built-in: armar3, barrett, parallel_jaw)\n"
+    assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.slow
@@ -70,4 +80,6 @@ def test_dvc_repro_caches_and_reruns_only_what_changed(tmp_path):
     third = run(dvc + ["repro"], tmp_path)
     assert third.returncode == 0, third.stderr
     ran = {line.split("'")[1] for line in third.stdout.splitlines() if line.startswith("Running stage")}
-    assert ran == {"mat@box", "mat@capsule", "sphere_grid@box", "sphere_grid@capsule"}
+    assert ran == {f"{stage}@{name}" for stage in ("mat", "sphere_grid", "classify", "candidates")
+                   for name in ("box", "capsule")}
+    assert (tmp_path / "data" / "box" / "candidates.parquet").exists()

@@ -1,0 +1,123 @@
+"""Candidate grasps from the symmetry classes (stage ``candidates``, paper III-C).
+
+A candidate is a grasp target P_g (the sphere centre), an approach direction P_d (unit,
+the direction the hand moves), a hand orientation P_o (unit, the axis the fingers wrap
+around, orthogonal to P_d) and a preshape. Only spheres whose diameter the hand can grasp
+get candidates. Per class:
+
+- ``axis`` and ``pair``: ``approach_directions`` directions evenly spaced in the plane
+  orthogonal to e1, starting at e2; P_o = e1.
+- ``rim``: P_o = e1; P_d = e2 or -e2, whichever moves the hand from outside the rim toward
+  the neighbourhood's centre of gravity (paper: -e2 when the angle to it is >= 90 degrees).
+- ``interior``: none.
+- ``isolated`` (a spherical part): the six directions +-x, +-y, +-z of the object frame,
+  with P_o = z for the four horizontal approaches and P_o = x for the two vertical ones.
+
+With ``flipped_candidates`` (Simox's default) every candidate is repeated with P_o = -P_o,
+so an axis sphere gives 8 candidates and a rim sphere 2.
+
+Candidate ids are stable: ``sphere_index * 64 + k``, k the candidate's rank for its sphere.
+"""
+
+import numpy as np
+import pandas as pd
+
+from .symmetry import AXIS, CLASSES, ISOLATED, PAIR, RIM
+
+IDS_PER_SPHERE = 64
+_ISOLATED_APPROACH = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+_ISOLATED_ORIENT = np.array([[0, 0, 1], [0, 0, 1], [0, 0, 1], [0, 0, 1], [1, 0, 0], [1, 0, 0]], float)
+
+COLUMNS = ["hand", "id", "sphere_index", "sphere_class", "diameter_m", "preshape",
+           "grasp_x", "grasp_y", "grasp_z", "approach_x", "approach_y", "approach_z",
+           "orient_x", "orient_y", "orient_z"]
+
+
+def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, preshape=None):
+    """Candidate grasps for one hand, as a table.
+
+    Parameters
+    ----------
+    symmetry : Symmetry
+    hand : Hand
+    approach_directions : int
+        Directions around an axis.
+    flipped_candidates : bool
+    preshape : str, optional
+        Defaults to the hand's first preshape.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per candidate, columns :data:`COLUMNS`; grasp_* in metres (object frame),
+        approach_* = P_d and orient_* = P_o as unit vectors.
+    """
+    axes = np.asarray(symmetry.axes).reshape(-1, 3, 3)
+    e1, e2, e3 = axes[:, 0], axes[:, 1], axes[:, 2]
+    class_id = np.asarray(symmetry.class_id)
+    graspable = 2.0 * np.asarray(symmetry.radii) <= hand.max_graspable_diameter
+    rows, approach, orient = [], [], []
+
+    tube = np.flatnonzero(graspable & np.isin(class_id, (AXIS, PAIR)))
+    angle = 2.0 * np.pi * np.arange(approach_directions) / approach_directions
+    approach.append((np.cos(angle)[None, :, None] * e2[tube, None] + np.sin(angle)[None, :, None] * e3[tube, None])
+                    .reshape(-1, 3))
+    orient.append(np.repeat(e1[tube], approach_directions, axis=0))
+    rows.append(np.repeat(tube, approach_directions))
+
+    rim = np.flatnonzero(graspable & (class_id == RIM))
+    toward_cog = np.asarray(symmetry.cog)[rim] - np.asarray(symmetry.centers)[rim]
+    sign = np.where((e2[rim] * toward_cog).sum(axis=1) <= 0, -1.0, 1.0)  # angle >= 90 deg -> -e2
+    approach.append(sign[:, None] * e2[rim])
+    orient.append(e1[rim])
+    rows.append(rim)
+
+    single = np.flatnonzero(graspable & (class_id == ISOLATED))
+    approach.append(np.tile(_ISOLATED_APPROACH, (len(single), 1)))
+    orient.append(np.tile(_ISOLATED_ORIENT, (len(single), 1)))
+    rows.append(np.repeat(single, len(_ISOLATED_APPROACH)))
+
+    row, approach, orient = np.concatenate(rows), np.concatenate(approach), np.concatenate(orient)
+    if flipped_candidates:
+        row, approach, orient = np.concatenate([row, row]), np.concatenate([approach, approach]), \
+            np.concatenate([orient, -orient])
+    # group by sphere, keeping the generation order inside each sphere: stable ranks
+    order = np.argsort(row, kind="stable")
+    row, approach, orient = row[order], approach[order], orient[order]
+    start = np.searchsorted(row, row, side="left")
+    rank = np.arange(len(row)) - start
+    sphere_index = np.asarray(symmetry.sphere_index)[row]
+    centers = np.asarray(symmetry.centers)[row]
+    table = pd.DataFrame({
+        "hand": hand.name,
+        "id": sphere_index * IDS_PER_SPHERE + rank,
+        "sphere_index": sphere_index,
+        "sphere_class": pd.Categorical(np.asarray(CLASSES)[class_id[row]], categories=CLASSES),
+        "diameter_m": 2.0 * np.asarray(symmetry.radii)[row],
+        "preshape": preshape or hand.preshapes[0],
+        "grasp_x": centers[:, 0], "grasp_y": centers[:, 1], "grasp_z": centers[:, 2],
+        "approach_x": approach[:, 0], "approach_y": approach[:, 1], "approach_z": approach[:, 2],
+        "orient_x": orient[:, 0], "orient_y": orient[:, 1], "orient_z": orient[:, 2],
+    })
+    return table.sort_values("id", kind="stable").reset_index(drop=True)
+
+
+def vectors(table, prefix):
+    """The ``(n, 3)`` array of columns ``{prefix}_x, _y, _z`` (prefix grasp, approach or orient)."""
+    return table[[f"{prefix}_x", f"{prefix}_y", f"{prefix}_z"]].to_numpy()
+
+
+def generate_for_hands(symmetry, hands, *, approach_directions=4, flipped_candidates=True):
+    """The ``candidates`` stage as a pure function: one table, a block of rows per hand.
+
+    Parameters
+    ----------
+    symmetry : Symmetry
+    hands : list of Hand
+
+    Returns
+    -------
+    pandas.DataFrame, columns :data:`COLUMNS`; ``(hand, id)`` is unique
+    """
+    return pd.concat([generate(symmetry, hand, approach_directions=approach_directions,
+                               flipped_candidates=flipped_candidates) for hand in hands], ignore_index=True)
