@@ -21,7 +21,7 @@ def main(argv=None):
                       help="built-in hand for the candidates (repeatable; default: params candidates.hands)")
     plan.add_argument("--params", default=None,
                       help=f"params file (default: {PARAMS_FILE} if present, else built-in defaults)")
-    bench = commands.add_parser("bench", help="benchmark medial_axis + mat against voronoi_poles")
+    bench = commands.add_parser("bench", help="benchmark medial_axis + mat (vs voronoi_poles) and classify + candidates")
     bench.add_argument("--json", default=None, help="also write the figures to this JSON file")
     bench.add_argument("--sizes", default="20000,100000,200000", help="surface sample counts, comma-separated")
     bench.add_argument("--repeats", type=int, default=3, help="runs per case; the median is reported")

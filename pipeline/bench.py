@@ -1,4 +1,4 @@
-"""Benchmark: medial_axis + mat time, peak memory and radius error, shrinking ball vs Voronoi poles.
+"""Benchmarks: medial_axis + mat against the Voronoi poles, and classify + candidates per sphere.
 
 Radius error is measured against the analytic shape: for every medial sphere,
 ``|r - d(X)|`` where ``d(X)`` is the exact distance from its centre to the true surface,
@@ -11,11 +11,15 @@ import tracemalloc
 
 import numpy as np
 
+from . import sphere_grid
 from .artefacts import atomic_write
+from .candidates import generate_for_hands
+from .hands import HANDS
 from .mat import reconstruct
 from .medial_axis import medial_axis
-from .params import MatParams, MedialAxisParams, SampleParams
+from .params import CandidatesParams, ClassifyParams, MatParams, MedialAxisParams, SampleParams
 from .sampling import sample_object
+from .symmetry import classify
 
 BOX_HALF = np.array([0.05, 0.03, 0.01])
 CAPSULE_RADIUS, CAPSULE_HALF_LENGTH = 0.02, 0.05
@@ -49,7 +53,18 @@ def _measure(surface, method, repeats):
 
 
 def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, out=print):
-    """Print (and optionally save) the benchmark table; returns the rows."""
+    """Print (and optionally save) both benchmark tables; returns the rows."""
+    rows = run_medial_bench(sizes=sizes, repeats=repeats, out=out)
+    out("")
+    symmetry_rows = run_symmetry_bench(repeats=repeats, out=out)
+    if json_path:
+        text = json.dumps({"repeats": repeats, "medial": rows, "symmetry": symmetry_rows}, indent=2).encode()
+        atomic_write(json_path, lambda stream: stream.write(text))
+    return rows, symmetry_rows
+
+
+def run_medial_bench(*, sizes=(20000, 100000, 200000), repeats=3, out=print):
+    """medial_axis + mat, both methods, on a box and a capsule; returns the rows."""
     rows = []
     out(f"{'shape':8} {'samples':>8} {'method':15} {'median s':>9} {'peak MiB':>9} {'spheres':>8} "
         f"{'radius err (median, p95)':>26}")
@@ -70,7 +85,36 @@ def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, out=p
             masb, poles = rows[-2], rows[-1]
             out(f"{'':8} {'':8} ratio poles/masb: time {poles['median_s'] / masb['median_s']:.1f}x, "
                 f"median radius error {poles['radius_error_median'] / max(masb['radius_error_median'], 1e-18):.1f}x")
-    if json_path:
-        text = json.dumps({"repeats": repeats, "rows": rows}, indent=2).encode()
-        atomic_write(json_path, lambda stream: stream.write(text))
+    return rows
+
+
+def run_symmetry_bench(*, sphere_counts=(10000, 100000), repeats=3, out=print):
+    """Time classify + candidates per sphere on the grid of medial spheres of a plate and a capsule.
+
+    The sample count is raised until the grid holds about the asked number of spheres.
+    Returns the rows.
+    """
+    rows = []
+    out(f"{'shape':8} {'spheres':>8} {'selected':>8} {'median s':>9} {'us/sphere':>10} {'candidates':>10}")
+    shapes = {"plate": dict(extents=[0.10, 0.10, 0.006]), "box": dict(extents=list(2 * BOX_HALF))}
+    hands = [HANDS[name] for name in CandidatesParams().hands]
+    for shape, keywords in shapes.items():
+        for wanted in sphere_counts:
+            surface = sample_object(f"primitive:{shape}", shape=keywords, rng=np.random.default_rng(0),
+                                    source_key=shape, **{**vars(SampleParams()), "count": int(wanted * 1.03)})
+            grid = sphere_grid.build(reconstruct(surface, medial_axis(surface, **vars(MedialAxisParams())),
+                                                 **vars(MatParams())))
+            times = []
+            for _ in range(repeats):
+                start = time.perf_counter()
+                symmetry = classify(grid, **vars(ClassifyParams()))
+                table = generate_for_hands(symmetry, hands)
+                times.append(time.perf_counter() - start)
+            seconds = float(np.median(times))
+            row = dict(shape=shape, spheres=len(grid), selected=len(symmetry), median_s=round(seconds, 4),
+                       us_per_sphere=round(1e6 * seconds / len(grid), 2), candidates=len(table))
+            rows.append(row)
+            out(f"{shape:8} {len(grid):8d} {len(symmetry):8d} {seconds:9.3f} {row['us_per_sphere']:10.2f} "
+                f"{len(table):10d}")
+    out("paper: 10-100 ms per sphere (Python, 2011); target <= 10 us per sphere")
     return rows

@@ -129,8 +129,10 @@ class CellGrid:
         owner = np.concatenate(owners) if owners else np.zeros(0, np.int64)
         index = np.concatenate(indices) if indices else np.zeros(0, np.int64)
         distance = np.concatenate(distances) if distances else np.zeros(0)
-        order = np.lexsort((index, distance, owner)) if sort else np.argsort(owner, kind="stable")
         indptr = np.concatenate([[0], np.cumsum(np.bincount(owner, minlength=len(queries)))])
+        if not sort:  # hits are generated query by query, so already grouped
+            return indptr, index, distance
+        order = np.lexsort((index, distance, owner))
         return indptr, index[order], distance[order]
 
     def nearest(self, queries):

@@ -31,6 +31,7 @@ it scales linearly with the object.
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse
 
 from .artefacts import _Artefact, content_key
 from .errors import BadParamsError
@@ -148,24 +149,26 @@ def neighbourhood_pca(queries, radius, centroid, count, scatter):
     from .cell_grid import CellGrid
 
     indptr, cell, _ = CellGrid.build(centroid).query_radius(queries, radius, sort=False)
-    owner = np.repeat(np.arange(len(queries)), np.diff(indptr))
-    weight = count[cell].astype(np.float64)
-    # moments about each query's own centre, for conditioning
-    local = centroid[cell] - queries[owner]
-    members = np.bincount(owner, weight, len(queries))
-    first = np.stack([np.bincount(owner, weight * local[:, axis], len(queries)) for axis in range(3)], axis=1)
-    outer = (weight[:, None, None] * local[:, :, None] * local[:, None, :] + scatter[cell]).reshape(-1, 9)
-    second = np.stack([np.bincount(owner, outer[:, k], len(queries)) for k in range(9)], axis=1).reshape(-1, 3, 3)
+    # moments about a common origin near the data (for conditioning), summed per
+    # neighbourhood by one sparse product: rows = queries, columns = cells
+    origin = centroid.mean(axis=0)
+    local = centroid - origin
+    weight = count.astype(np.float64)
+    second = scatter + weight[:, None, None] * local[:, :, None] * local[:, None, :]
+    features = np.column_stack([weight, weight[:, None] * local, second.reshape(-1, 9)])
+    membership = scipy.sparse.csr_matrix((np.ones(len(cell)), cell, indptr), shape=(len(queries), len(centroid)))
+    summed = membership @ features
+    members = summed[:, 0]
     safe = np.maximum(members, 1.0)
-    mean = first / safe[:, None]
-    covariance = second / safe[:, None, None] - mean[:, :, None] * mean[:, None, :]
+    mean = summed[:, 1:4] / safe[:, None]
+    covariance = summed[:, 4:].reshape(-1, 3, 3) / safe[:, None, None] - mean[:, :, None] * mean[:, None, :]
     values, vectors = np.linalg.eigh(covariance)
     values = np.clip(values[:, ::-1], 0.0, None)
     axes = vectors[:, :, ::-1].transpose(0, 2, 1)
     # fix each eigenvector's sign so results do not depend on LAPACK: largest component positive
     flip = np.take_along_axis(axes, np.abs(axes).argmax(axis=2)[:, :, None], axis=2) < 0
     axes = np.where(flip, -axes, axes)
-    return values, axes, queries + mean, np.rint(members).astype(np.int64)
+    return values, axes, origin + mean, np.rint(members).astype(np.int64)
 
 
 def classify(sphere_grid, *, min_object_angle_deg=120.0, min_diameter_m=0.0, max_diameter_ratio=1.0,

@@ -47,7 +47,10 @@ def test_query_radius_equals_brute_force(case):
     grid = CellGrid.build(points, cell_density=density)
     indptr, indices, distances = grid.query_radius(queries, radii)
     expected, distance = brute_force(points, queries, radii)
+    unsorted_indptr, unsorted, _ = grid.query_radius(queries, radii, sort=False)
+    assert np.array_equal(unsorted_indptr, indptr)
     for row in range(n_queries):
+        assert set(unsorted[indptr[row]:indptr[row + 1]]) == expected[row]
         hits = indices[indptr[row]:indptr[row + 1]]
         assert set(hits) == expected[row]
         assert len(hits) == len(expected[row])
