@@ -12,7 +12,7 @@ on one side of a thick part, the defining ones never do.
 import numpy as np
 from pykdtree.kdtree import KDTree
 
-from .arrays import padded_rows, unit_rows
+from .arrays import padded_rows
 from .artefacts import MedialSpheres, content_key
 from .cell_grid import CellGrid
 from .checks import as_points
@@ -37,18 +37,17 @@ def nearest_samples(surface_points, centers, *, count, search="kdtree", kdtree_e
 
     Returns
     -------
-    distances : (m, count) float64, inf where fewer samples exist
+    distances : (m, count) float64, nearest first up to float32 ties; inf where fewer samples exist
     indices : (m, count) int64, -1 where fewer samples exist
     """
     count = min(count, len(surface_points))
     if search == "kdtree":
-        # float32 tree for speed; distances are recomputed in float64 and re-sorted
+        # float32 tree for speed; distances are recomputed in float64 (the order is float32's,
+        # so near-ties may swap: callers take the minimum, not the first)
         _, indices = KDTree(surface_points.astype(np.float32)).query(centers.astype(np.float32), k=count,
                                                                      eps=kdtree_eps)
         indices = indices.reshape(len(centers), count).astype(np.int64)
-        distances = np.linalg.norm(surface_points[indices] - centers[:, None, :], axis=2)
-        order = np.argsort(distances, axis=1, kind="stable")
-        return np.take_along_axis(distances, order, axis=1), np.take_along_axis(indices, order, axis=1)
+        return np.linalg.norm(surface_points[indices] - centers[:, None, :], axis=2), indices
     grid = CellGrid.build(surface_points, cell_density=cell_density)
     nearest_distance, _ = grid.nearest(centers)
     # every sample within twice the nearest distance holds the count nearest when the
@@ -74,7 +73,7 @@ def object_angle(centers, surface_points, contacts):
     ----------
     centers : (m, 3) float64
     surface_points : (n, 3) float64
-    contacts : (m, k) int64, -1 padded
+    contacts : (m, k) int64, valid entries first, -1 padded
 
     Returns
     -------
@@ -83,13 +82,13 @@ def object_angle(centers, surface_points, contacts):
     angles = np.zeros(len(centers))
     for start in range(0, len(centers), _ANGLE_CHUNK):
         block = slice(start, start + _ANGLE_CHUNK)
-        valid = contacts[block] >= 0
-        direction = surface_points[np.where(valid, contacts[block], 0)] - centers[block, None, :]
+        # padding repeats the first contact: it adds only pairs already present
+        index = np.where(contacts[block] >= 0, contacts[block], contacts[block, :1])
+        direction = surface_points[np.maximum(index, 0)] - centers[block, None, :]
         # float32 is ample: an angle error of ~1e-7 rad against thresholds of degrees
-        direction = unit_rows(direction.reshape(-1, 3)).reshape(direction.shape).astype(np.float32)
-        cosine = direction @ direction.transpose(0, 2, 1)
-        cosine[~(valid[:, :, None] & valid[:, None, :])] = 1.0
-        angles[block] = np.arccos(np.clip(cosine.min(axis=(1, 2)), -1.0, 1.0))
+        direction = (direction / np.linalg.norm(direction, axis=2, keepdims=True)).astype(np.float32)
+        cosine = (direction @ direction.transpose(0, 2, 1)).min(axis=(1, 2))
+        angles[block] = np.where(contacts[block, 0] >= 0, np.arccos(np.clip(cosine, -1.0, 1.0)), 0.0)
     return angles
 
 
@@ -124,11 +123,13 @@ def reconstruct(surface, axis, *, tau=0.01, max_contacts=8, search="kdtree", kdt
     defining = np.array(axis.contacts)
     distances, nearest = nearest_samples(points, centers, count=max_contacts, search=search,
                                          kdtree_eps=kdtree_eps, cell_density=cell_density)
-    radii = np.minimum(distances[:, 0], axis.radii)
+    closest = np.argmin(distances, axis=1)
+    radii = np.minimum(distances[np.arange(len(centers)), closest], axis.radii)
     touch_limit = radii[:, None] * (1.0 + tau)
     # an inner ball sees its nearest sample from behind that sample's outward normal; a
     # ball that never shrank into the object (a stray normal) sees it from the front
-    inside = ((centers - points[nearest[:, 0]]) * surface.normals[nearest[:, 0]]).sum(axis=1) < 0
+    first = nearest[np.arange(len(centers)), closest]
+    inside = ((centers - points[first]) * surface.normals[first]).sum(axis=1) < 0
     nearest = np.where(distances <= touch_limit, nearest, -1)
     safe = np.where(defining >= 0, defining, 0)
     defining_distance = np.linalg.norm(points[safe] - centers[:, None, :], axis=2)

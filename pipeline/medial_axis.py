@@ -161,10 +161,11 @@ def spread_contacts(centers, surface_points, group, defining):
 
     Returns
     -------
-    (s, 3) int64, -1 where a group has no defining sample
+    (s, 3) int64, -1 where a group has a single ball (its own samples say it all) or none
     """
-    owner = np.repeat(group, defining.shape[1])
-    sample = defining.ravel()
+    shared = (np.bincount(group, minlength=len(centers)) > 1)[group]
+    owner = np.repeat(group[shared], defining.shape[1])
+    sample = defining[shared].ravel()
     valid = sample >= 0
     owner, sample = owner[valid], sample[valid]
     direction = unit_rows(surface_points[sample] - centers[owner])
@@ -224,7 +225,7 @@ def voronoi_poles(points, normals):
     return circumcentre[pole_tet], circumradius[pole_tet], pole_sample, simplices[pole_tet]
 
 
-def medial_axis(surface, *, method="shrinking_ball", kdtree_eps=1.0, min_chord_factor=4.0, min_separation_deg=20.0,
+def medial_axis(surface, *, method="shrinking_ball", kdtree_eps=4.0, min_chord_factor=4.0, min_separation_deg=20.0,
                 max_iterations=30, merge_factor=0.5, merge_relative=0.01):
     """The ``medial_axis`` stage as a pure function.
 

@@ -44,7 +44,7 @@ class MedialAxisParams:
 
     method: str = "shrinking_ball"
     """``shrinking_ball`` (default, Ma et al. 2012) or ``voronoi_poles`` (Qhull inner poles, reference)."""
-    kdtree_eps: float = 1.0
+    kdtree_eps: float = 4.0
     """Approximate-NN slack of the growing pass (facts.md 5: exact queries stall on tubes); the
     exact polish of the merged balls restores full accuracy, so a loose slack only saves time."""
     min_chord_factor: float = 4.0
