@@ -113,6 +113,18 @@ def _read_cloud(path):
     return points, normals
 
 
+def check_size(points, *, name, min_extent, max_extent):
+    """The bounding-box diagonal of ``points`` ((n, 3), metres); outside the range it is an error.
+
+    A size outside ``[min_extent, max_extent]`` almost always means wrong units.
+    """
+    diagonal = float(np.linalg.norm(np.ptp(np.asarray(points), axis=0)))
+    if not min_extent <= diagonal <= max_extent:
+        raise BadInputError(f"{name}: bounding-box diagonal {diagonal:.4g} m is outside "
+                            f"[{min_extent:g}, {max_extent:g}] m: wrong units? (set the object's scale)")
+    return diagonal
+
+
 def validate_mesh(mesh, *, name, min_extent, max_extent):
     """Repair what is safe to repair and reject the rest; returns a new watertight Trimesh.
 
@@ -141,10 +153,7 @@ def validate_mesh(mesh, *, name, min_extent, max_extent):
     mesh.merge_vertices(merge_tex=True, merge_norm=True)
     if len(mesh.faces) == 0:
         raise BadInputError(f"{name}: every triangle is degenerate")
-    diagonal = float(np.linalg.norm(mesh.extents))
-    if not min_extent <= diagonal <= max_extent:
-        raise BadInputError(f"{name}: bounding-box diagonal {diagonal:.4g} m is outside "
-                            f"[{min_extent:g}, {max_extent:g}] m: wrong units? (set the object's scale)")
+    diagonal = check_size(mesh.vertices, name=name, min_extent=min_extent, max_extent=max_extent)
     if not mesh.is_watertight:
         mesh.fill_holes()
     if not mesh.is_watertight:

@@ -14,7 +14,7 @@ from .artefacts import SurfaceSamples, content_key
 from .arrays import expand_ranges, unit_rows
 from .checks import as_points
 from .errors import BadInputError
-from .objects import load_source, validate_mesh
+from .objects import check_size, load_source, validate_mesh
 
 
 def corner_normals(vertices, faces, *, sharp_angle):
@@ -152,10 +152,7 @@ def sample_object(source, *, count, rng, sharp_angle_deg, min_extent_m, max_exte
         points = as_points(f"{source}: points", points)
         if len(points) < 100:
             raise BadInputError(f"{source}: point cloud has {len(points)} points, need at least 100")
-        diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
-        if not min_extent_m <= diagonal <= max_extent_m:
-            raise BadInputError(f"{source}: bounding-box diagonal {diagonal:.4g} m is outside "
-                                f"[{min_extent_m:g}, {max_extent_m:g}] m: wrong units? (set the object's scale)")
+        check_size(points, name=source, min_extent=min_extent_m, max_extent=max_extent_m)
         if normals is None:
             normals = estimate_cloud_normals(points, neighbours=cloud_normal_neighbours)
         normals = unit_rows(as_points(f"{source}: normals", normals))
