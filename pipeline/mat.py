@@ -92,7 +92,7 @@ def object_angle(centers, surface_points, contacts):
     return angles
 
 
-def reconstruct(surface, axis, *, tau=0.01, max_contacts=8, search="kdtree", kdtree_eps=0.2, cell_density=4.0):
+def reconstruct(surface, axis, *, tau=0.01, max_contacts=4, search="kdtree", kdtree_eps=0.2, cell_density=4.0):
     """The ``mat`` stage as a pure function: medial spheres from samples and medial axis.
 
     Parameters

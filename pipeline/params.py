@@ -74,7 +74,7 @@ class MatParams:
 
     tau: float = 0.01
     """A sample touches a sphere of radius r when it lies within r (1 + tau) of the centre."""
-    max_contacts: int = 8
+    max_contacts: int = 4
     """At most this many nearest touching samples are kept per sphere."""
     search: str = "kdtree"
     """Nearest-surface-point search: ``kdtree`` (pykdtree) or ``grid`` (the paper's cell grid)."""
