@@ -1,5 +1,6 @@
 """Shared plumbing of the command line and the DVC stages: params, errors, exit codes."""
 
+import argparse
 import functools
 import sys
 
@@ -29,3 +30,11 @@ def one_line_errors(main):
 def params(path=PARAMS_FILE):
     """The validated params file (see :mod:`pipeline.params`)."""
     return load_params(path)
+
+
+def stage_args(description, *names, argv=None):
+    """Parse a stage's positional arguments (input and output paths, from dvc.yaml's cmd)."""
+    parser = argparse.ArgumentParser(description=description)
+    for name in names:
+        parser.add_argument(name)
+    return parser.parse_args(argv)

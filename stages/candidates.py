@@ -1,20 +1,16 @@
 """Stage ``candidates``: python -m stages.candidates SYMMETRY.npz OUT.parquet"""
 
-import argparse
 
 from pipeline.artefacts import write_table
 from pipeline.candidates import generate_for_hands
-from pipeline.cli import one_line_errors, params
+from pipeline.cli import one_line_errors, params, stage_args
 from pipeline.hands import get_hand
 from pipeline.symmetry import Symmetry
 
 
 @one_line_errors
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("symmetry")
-    parser.add_argument("out")
-    args = parser.parse_args(argv)
+    args = stage_args(__doc__, "symmetry", "out", argv=argv)
     config = params().candidates
     table = generate_for_hands(Symmetry.load(args.symmetry), [get_hand(name) for name in config.hands],
                                approach_directions=config.approach_directions,

@@ -1,21 +1,17 @@
 """Stage ``classify``: python -m stages.classify SPHERE_GRID.npz OUT.npz"""
 
-import argparse
 import dataclasses
 
 import numpy as np
 
 from pipeline.artefacts import SphereGrid
-from pipeline.cli import one_line_errors, params
+from pipeline.cli import one_line_errors, params, stage_args
 from pipeline.symmetry import CLASSES, classify
 
 
 @one_line_errors
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("sphere_grid")
-    parser.add_argument("out")
-    args = parser.parse_args(argv)
+    args = stage_args(__doc__, "sphere_grid", "out", argv=argv)
     symmetry = classify(SphereGrid.load(args.sphere_grid), **dataclasses.asdict(params().classify))
     symmetry.save(args.out)
     counts = np.bincount(symmetry.class_id, minlength=len(CLASSES))

@@ -1,11 +1,10 @@
 """Stage ``sample``: python -m stages.sample OBJECT OUT.npz"""
 
-import argparse
 import dataclasses
 
 import numpy as np
 
-from pipeline.cli import one_line_errors, params
+from pipeline.cli import one_line_errors, params, stage_args
 from pipeline.errors import BadParamsError
 from pipeline.objects import parse_spec, source_key
 from pipeline.sampling import sample_object
@@ -13,10 +12,7 @@ from pipeline.sampling import sample_object
 
 @one_line_errors
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("object")
-    parser.add_argument("out")
-    args = parser.parse_args(argv)
+    args = stage_args(__doc__, "object", "out", argv=argv)
     config = params()
     if args.object not in config.objects:
         raise BadParamsError(f"params.yaml: no object named {args.object!r} under 'objects'")
