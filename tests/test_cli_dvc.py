@@ -83,3 +83,19 @@ def test_dvc_repro_caches_and_reruns_only_what_changed(tmp_path):
     assert ran == {f"{stage}@{name}" for stage in ("mat", "sphere_grid", "classify", "candidates")
                    for name in ("box", "capsule")}
     assert (tmp_path / "data" / "box" / "candidates.parquet").exists()
+
+    # push to a local remote, then a fresh clone pulls back every artefact, byte for byte
+    assert run(dvc + ["remote", "add", "-d", "store", str(tmp_path.parent / "store")], tmp_path).returncode == 0
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t"]
+    assert run(git + ["add", "-A"], tmp_path).returncode == 0
+    assert run(git + ["commit", "-qm", "run"], tmp_path).returncode == 0
+    pushed = run(dvc + ["push"], tmp_path)
+    assert pushed.returncode == 0, pushed.stderr
+    clone = tmp_path.parent / "clone"
+    assert run(["git", "clone", "-q", str(tmp_path), str(clone)], tmp_path.parent).returncode == 0
+    pulled = run(dvc + ["pull"], clone)
+    assert pulled.returncode == 0, pulled.stderr
+    outputs = sorted(path.relative_to(tmp_path) for path in (tmp_path / "data").rglob("*.*") if path.name[0] != ".")
+    assert len(outputs) == 12
+    for relative in outputs:
+        assert (clone / relative).read_bytes() == (tmp_path / relative).read_bytes()
