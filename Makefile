@@ -31,7 +31,7 @@ $(VENV)/.synced: $(UV) pyproject.toml uv.lock
 
 run: setup
 	dvc repro
-	@echo "artefacts: data/<object>/{surface,medial_axis,spheres,sphere_grid}.npz (see README)"
+	@echo "artefacts: data/<object>/{surface,medial_axis,spheres,sphere_grid,symmetry}.npz and candidates.parquet (see README)"
 
 test: setup
 	python -m pytest -q
