@@ -42,3 +42,21 @@ def padded_rows(indptr, values, width, *, fill=-1):
     out = np.full((rows, width), fill, dtype=np.asarray(values).dtype)
     out[owner, position - indptr[:-1][owner]] = values[position]
     return out
+
+
+def group_rows(rows):
+    """Group identical rows of an integer array (e.g. cell indices) without a Python loop.
+
+    Parameters
+    ----------
+    rows : (n, d) int64
+
+    Returns
+    -------
+    first : (g,) int64, index of each group's first row, groups in sorted-key order
+    inverse : (n,) int64, the group of every row
+    """
+    rows = np.ascontiguousarray(rows, dtype=np.int64)
+    keys = rows.view(np.dtype((np.void, rows.itemsize * rows.shape[1]))).ravel()
+    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    return first, inverse.ravel()

@@ -20,7 +20,7 @@ import numpy as np
 from pykdtree.kdtree import KDTree
 from scipy.spatial import Delaunay
 
-from .arrays import unit_rows
+from .arrays import group_rows, unit_rows
 from .artefacts import MedialAxis, content_key
 from .checks import as_points
 from .errors import BadInputError, DegenerateGeometryError
@@ -136,9 +136,7 @@ def merge_close(centers, radii, *, absolute, relative):
         edge = np.maximum(absolute, relative * np.exp(level * np.log1p(relative)))
     else:
         level, edge = np.zeros(len(radii)), np.full(len(radii), absolute)
-    cells = np.column_stack([level, np.floor(centers / edge[:, None])]).astype(np.int64)
-    keys = np.ascontiguousarray(cells).view(np.dtype((np.void, cells.itemsize * 4))).ravel()
-    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    first, inverse = group_rows(np.column_stack([level, np.floor(centers / edge[:, None])]).astype(np.int64))
     rank = np.empty(len(first), dtype=np.int64)
     rank[np.argsort(first, kind="stable")] = np.arange(len(first))
     return np.sort(first), rank[inverse]

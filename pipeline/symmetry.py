@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse
 
+from .arrays import group_rows
 from .artefacts import _Artefact, content_key
 from .errors import BadParamsError
 
@@ -115,9 +116,8 @@ def cell_moments(centers, cell_size):
     if cell_size > 0:
         cells = np.floor(centers / cell_size).astype(np.int64)
     else:
-        cells = np.ascontiguousarray(centers).view(np.int64)
-    keys = np.ascontiguousarray(cells).view(np.dtype((np.void, 24))).ravel()
-    _, inverse = np.unique(keys, return_inverse=True)
+        cells = np.ascontiguousarray(centers).view(np.int64)  # bit patterns: one cell per distinct point
+    _, inverse = group_rows(cells)
     count = np.bincount(inverse)
     centroid = np.stack([np.bincount(inverse, centers[:, axis]) for axis in range(3)], axis=1) / count[:, None]
     offset = centers - centroid[inverse]
