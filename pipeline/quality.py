@@ -1,0 +1,176 @@
+"""Ferrari-Canny epsilon (L1) grasp quality from contact points and normals.
+
+Each contact's Coulomb friction cone is linearised by ``edges`` edge forces of unit normal
+component and tangential length ``mu`` (half-angle ``atan(mu)``; Simox's generator uses 45 deg
+whatever ``mu`` is). Each edge force f at contact p gives the wrench ``(f, (p - center) x f /
+torque_scale)``; the grasp's epsilon is the distance from the ORIGIN of wrench space (not the
+hull's centroid) to the nearest facet of the wrenches' convex hull, and 0 unless the origin is
+strictly inside (force closure).
+
+Torque is divided by ``torque_scale`` (metres) so that it is comparable with force; GraspIt and
+Dex-Net use the object's largest radius about its centre of mass, which the caller passes along
+with ``center`` (the centre of mass). Epsilon is then dimensionless and independent of the object's
+size and placement. The cone's spin about its normal follows a fixed tangent basis, so rotating a
+whole grasp can change epsilon slightly: it stays between the unrotated grasp's epsilon with
+``mu cos(pi / edges)`` and with ``mu / cos(pi / edges)``.
+
+References
+----------
+Ferrari, C. and Canny, J. (1992). Planning optimal grasps. ICRA, 2290-2295.
+Miller, A. T. and Allen, P. K. (1999). Examples of 3D grasp quality computations. ICRA.
+Duff, T. et al. (2017). Building an orthonormal basis, revisited. JCGT 6(1).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+from .arrays import unit_rows
+from .checks import as_points
+
+RANK_TOL = 1e-9     # smallest singular value / largest below which the wrenches are flat
+INSIDE_TOL = 1e-12  # origin-to-facet distance below which the origin counts as on the hull
+DEDUPE_DECIMALS = 12  # identical wrenches (e.g. symmetric contacts) only slow Qhull down
+# Without pre-merging (Q0) Qhull is 2-3x faster in 6D and the facet offsets are the same; when
+# it reports a precision error, co-planar cone edges of symmetric grasps (box pads, rings of
+# fingers) need merging (Qx), sometimes wide merges (Q12); joggle (QJ, error ~1e-9 relative) is
+# the last resort, so a good grasp is never scored 0 for it
+QHULL_OPTIONS = ("Q0", "Qx", "Qx Q12", "QJ")
+
+
+@dataclass(frozen=True)
+class Quality:
+    """Ferrari-Canny quality of one grasp.
+
+    Attributes
+    ----------
+    epsilon : float
+        Distance from the origin to the nearest facet of the wrench hull; 0 unless force closure.
+    volume : float
+        6D volume of the wrench hull; 0 when the wrenches span fewer than 6 dimensions.
+    force_closure : bool
+        Whether the origin is strictly inside the hull (``epsilon > 0``).
+    """
+
+    epsilon: float
+    volume: float
+    force_closure: bool
+
+
+def _tangents(normals):
+    """Two ``(n, 3)`` unit tangents t1, t2 with (t1, t2, n) right-handed, by Duff et al. (2017)."""
+    x, y, z = normals.T
+    sign = np.where(z >= 0, 1.0, -1.0)  # branchless: continuous except across z = 0
+    a = -1.0 / (sign + z)
+    b = x * y * a
+    t1 = np.stack([1 + sign * x * x * a, sign * b, -sign * x], axis=1)
+    t2 = np.stack([b, sign + y * y * a, -y], axis=1)
+    return t1, t2
+
+
+def friction_cone(normals, mu=0.5, edges=8):
+    """Edge forces of the linearised friction cones.
+
+    Parameters
+    ----------
+    normals : (n, 3) float
+        Inward contact normals (the direction the finger pushes); normalised here.
+    mu : float
+        Coulomb friction coefficient, >= 0; the cone's half-angle is ``atan(mu)`` radians.
+    edges : int
+        Edges per cone, >= 3.
+
+    Returns
+    -------
+    (n, edges, 3) float64
+        Edge k is ``n + mu (cos(2 pi k / edges) t1 + sin(2 pi k / edges) t2)``: unit normal
+        component, tangential length ``mu``.
+    """
+    if mu < 0:
+        raise ValueError(f"mu must be >= 0, got {mu}")
+    if edges < 3:
+        raise ValueError(f"edges must be >= 3, got {edges}")
+    normals = unit_rows(as_points("normals", normals, allow_empty=True))
+    t1, t2 = _tangents(normals)
+    angle = 2.0 * np.pi * np.arange(edges) / edges
+    tangential = np.cos(angle)[None, :, None] * t1[:, None] + np.sin(angle)[None, :, None] * t2[:, None]
+    return normals[:, None] + mu * tangential
+
+
+def contact_wrenches(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, torsional_friction=0.0,
+                     center=None):
+    """Wrenches of the friction-cone edges (and, for soft fingers, the torsional limits).
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        Contact points, metres, object frame.
+    normals : (n, 3) float
+        Inward contact normals, object frame; normalised here.
+    mu, edges
+        See :func:`friction_cone`.
+    torque_scale : float
+        Length dividing torques, metres, > 0 (e.g. the object's largest radius).
+    torsional_friction : float
+        Soft-finger torsional friction gamma, metres, >= 0: the largest torque about the normal
+        per unit normal force. 0 is a point contact with friction.
+    center : (3,) float, optional
+        Torque reference, metres, object frame (the centre of mass); defaults to the origin.
+
+    Returns
+    -------
+    (n, k, 6) float64
+        ``(force, torque / torque_scale)`` rows; k = ``edges``, or ``edges + 2`` with torsional
+        friction, the extra two being force n with torque ``(p - center) x n +- gamma n``.
+    """
+    if torque_scale <= 0:
+        raise ValueError(f"torque_scale must be > 0, got {torque_scale}")
+    if torsional_friction < 0:
+        raise ValueError(f"torsional_friction must be >= 0, got {torsional_friction}")
+    points = as_points("points", points, allow_empty=True)
+    normals = unit_rows(as_points("normals", normals, allow_empty=True))
+    if len(points) != len(normals):
+        raise ValueError(f"points and normals differ in length: {len(points)} != {len(normals)}")
+    arm = points - (np.zeros(3) if center is None else np.asarray(center, dtype=np.float64))
+    forces = friction_cone(normals, mu, edges)
+    if torsional_friction > 0:
+        forces = np.concatenate([forces, normals[:, None], normals[:, None]], axis=1)
+    torques = np.cross(arm[:, None], forces)
+    if torsional_friction > 0:
+        torques[:, -2:] += torsional_friction * np.array([1.0, -1.0])[None, :, None] * normals[:, None]
+    return np.concatenate([forces, torques / torque_scale], axis=2)
+
+
+def epsilon_quality(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, torsional_friction=0.0,
+                    center=None):
+    """Ferrari-Canny epsilon (L1) of a grasp; see :func:`contact_wrenches` for the parameters.
+
+    Returns
+    -------
+    Quality
+        Zero epsilon and volume for no contact, one contact or wrenches spanning fewer than
+        6 dimensions (a flat hull, e.g. two point contacts).
+    """
+    wrenches = contact_wrenches(points, normals, mu=mu, edges=edges, torque_scale=torque_scale,
+                                torsional_friction=torsional_friction, center=center)
+    none = Quality(0.0, 0.0, False)
+    if len(wrenches) < 2:  # one contact's cone never holds the origin inside
+        return none
+    wrenches = np.unique(np.round(wrenches.reshape(-1, 6), DEDUPE_DECIMALS), axis=0)
+    # Qhull needs a full-dimensional point set: check the affine rank before calling it
+    spread = np.linalg.svd(wrenches - wrenches.mean(axis=0), compute_uv=False)
+    if len(wrenches) < 7 or spread[5] <= RANK_TOL * spread[0]:
+        return none
+    for options in QHULL_OPTIONS:
+        try:
+            hull = ConvexHull(wrenches, qhull_options=options)
+            break
+        except QhullError:
+            continue
+    else:
+        return none
+    # equations rows are [unit normal, offset] with normal . x + offset <= 0 inside
+    distance = -hull.equations[:, -1].max()  # to the nearest facet's plane
+    inside = distance > INSIDE_TOL
+    return Quality(float(distance) if inside else 0.0, float(hull.volume), bool(inside))
