@@ -18,7 +18,13 @@ def main(argv=None):
     plan.add_argument("--scale", type=float, default=1.0, help="factor on the coordinates (0.001 for mm)")
     plan.add_argument("--seed", type=int, default=None, help="overrides params.yaml's seed")
     plan.add_argument("--hand", action="append", default=None,
-                      help="built-in hand for the candidates (repeatable; default: params candidates.hands)")
+                      help="built-in hand name or hand spec .yaml/.toml (repeatable; default: params candidates.hands)")
+    plan.add_argument("--spheres", type=int, default=None,
+                      help="random spheres per hand whose candidates are simulated (default: params, 200)")
+    plan.add_argument("--baseline", type=int, default=None,
+                      help="surface-normal baseline trials per hand (default: as many as the MAT trials)")
+    plan.add_argument("--workers", type=int, default=None, help="trial processes (default: every core)")
+    plan.add_argument("--no-simulate", action="store_true", help="stop after the candidates")
     plan.add_argument("--params", default=None,
                       help=f"params file (default: {PARAMS_FILE} if present, else built-in defaults)")
     bench = commands.add_parser("bench", help="benchmark medial_axis + mat (vs voronoi_poles) and classify + candidates")
@@ -34,6 +40,7 @@ def main(argv=None):
 
 
 def _plan(args):
+    import dataclasses
     from pathlib import Path
 
     from .plan import run_chain, summary, write_plan
@@ -41,11 +48,20 @@ def _plan(args):
     params_path = args.params or (PARAMS_FILE if Path(PARAMS_FILE).is_file() else None)
     params = load_params(params_path) if params_path else Params()
     seed = params.seed if args.seed is None else args.seed
+    overrides = {key: value for key, value in (("spheres_per_object", args.spheres),
+                                               ("baseline_trials", args.baseline)) if value is not None}
+    if overrides:
+        params = dataclasses.replace(params, simulate=dataclasses.replace(params.simulate, **overrides))
     artefacts, timings = run_chain(args.mesh, params, scale=args.scale, seed=seed, hands=args.hand,
+                                   simulate=not args.no_simulate, workers=args.workers,
                                    progress=lambda line: print(line, file=sys.stderr))
     result = summary(artefacts, timings, source=args.mesh, scale=args.scale, seed=seed)
     write_plan(args.out, artefacts, result)
-    print(json.dumps({**result["counts"], "classes": result["classes"], "candidates": result["candidates"]}))
+    brief = {**result["counts"], "classes": result["classes"], "candidates": result["candidates"]}
+    if "trials" in result:
+        brief.update({key: result[key] for key in ("trials", "force_closure_rate", "mean_epsilon", "outcomes")})
+        brief["baseline_force_closure_rate"] = result["baseline"]["force_closure_rate"]
+    print(json.dumps(brief))
     print(f"wrote {args.out}/summary.json")
 
 

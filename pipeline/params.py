@@ -141,7 +141,7 @@ class CandidatesParams:
     """Candidate grasps (stage ``candidates``, paper III-C)."""
 
     hands: list = field(default_factory=lambda: ["armar3", "barrett"])
-    """Built-in hands to generate candidates for (see :mod:`pipeline.hands`)."""
+    """Hands to plan and simulate for: built-in names or paths to hand specs (see :mod:`pipeline.hands`)."""
     approach_directions: int = 4
     """Approach directions around a symmetry axis (Simox default 4)."""
     flipped_candidates: bool = True
@@ -150,9 +150,52 @@ class CandidatesParams:
     def __post_init__(self):
         from .hands import HANDS
 
-        _require(isinstance(self.hands, list) and self.hands and all(h in HANDS for h in self.hands),
-                 "candidates", "hands", f"must list built-in hands ({', '.join(HANDS)}), got {self.hands!r}")
+        _require(isinstance(self.hands, list) and self.hands
+                 and all(h in HANDS or str(h).endswith((".yaml", ".yml", ".toml")) for h in self.hands),
+                 "candidates", "hands", f"must list built-in hands ({', '.join(HANDS)}) or hand spec files, "
+                 f"got {self.hands!r}")
         _require(self.approach_directions >= 1, "candidates", "approach_directions", "must be >= 1")
+
+
+@dataclass(frozen=True)
+class SimulateParams:
+    """Grasp trials (stage ``simulate``, paper IV; see :mod:`pipeline.simulation`)."""
+
+    spheres_per_object: int = 200
+    """Random spheres (with candidates) per hand; all their candidates are tried (paper: 200)."""
+    baseline_trials: int = -1
+    """Surface-normal baseline trials per hand: -1 = as many as the MAT trials, 0 = none."""
+    mu: float = 0.5
+    """Coulomb friction coefficient; the linearised cone's half-angle is atan(mu)."""
+    cone_edges: int = 8
+    torsional_friction_m: float = 0.0
+    """Soft-finger torsional friction (m); 0 = point contacts with friction, as in the paper."""
+    contact_tolerance_m: float = 0.002
+    """A link this close to the object touches it: it stops, and its mesh points are contacts."""
+    retract_step_m: float = 0.005
+    retract_max_m: float = 0.2
+    """A candidate whose hand is not clear after this retreat is a ``collision``."""
+    near_m: float = 0.004
+    """Below this a closing link's distance is measured exactly against the samples; above it
+    a cheaper voxel bound sets the step."""
+    workers: int = 0
+    """Trial processes; 0 = every core."""
+
+    def __post_init__(self):
+        _require(self.spheres_per_object >= 1, "simulate", "spheres_per_object", "must be >= 1")
+        _require(self.baseline_trials >= -1, "simulate", "baseline_trials", "must be -1, 0 or a count")
+        _require(self.mu >= 0, "simulate", "mu", "must be >= 0")
+        _require(self.cone_edges >= 3, "simulate", "cone_edges", "must be >= 3")
+        _require(self.torsional_friction_m >= 0, "simulate", "torsional_friction_m", "must be >= 0")
+        for key in ("contact_tolerance_m", "retract_step_m", "retract_max_m", "near_m"):
+            _require(getattr(self, key) > 0, "simulate", key, "must be > 0")
+        _require(self.workers >= 0, "simulate", "workers", "must be >= 0")
+
+    def world_settings(self):
+        """Keyword arguments of :class:`pipeline.simulation.GraspWorld`."""
+        return {key: getattr(self, key) for key in ("mu", "cone_edges", "torsional_friction_m",
+                                                    "contact_tolerance_m", "retract_step_m", "retract_max_m",
+                                                    "near_m")}
 
 
 @dataclass(frozen=True)
@@ -167,6 +210,7 @@ class Params:
     sphere_grid: SphereGridParams = field(default_factory=SphereGridParams)
     classify: ClassifyParams = field(default_factory=ClassifyParams)
     candidates: CandidatesParams = field(default_factory=CandidatesParams)
+    simulate: SimulateParams = field(default_factory=SimulateParams)
 
 
 SECTIONS = {f.name: f.type for f in dataclasses.fields(Params) if dataclasses.is_dataclass(f.type)}

@@ -17,12 +17,17 @@ from .objects import source_key
 from .params import Params
 from .sampling import sample_object
 from .symmetry import CLASSES, classify
+from .trials import default_workers
+from .trials import simulate as run_simulation
+from .trials import summary as trial_summary
 
 ARTEFACT_NAMES = {"sample": "surface.npz", "medial_axis": "medial_axis.npz", "mat": "spheres.npz",
-                  "sphere_grid": "sphere_grid.npz", "classify": "symmetry.npz", "candidates": "candidates.parquet"}
+                  "sphere_grid": "sphere_grid.npz", "classify": "symmetry.npz", "candidates": "candidates.parquet",
+                  "trials": "trials.parquet", "contacts": "contacts.parquet"}
 
 
-def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, hands=None, progress=None):
+def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, hands=None, simulate=False,
+              workers=None, progress=None):
     """Compute every stage's artefact for one object, in memory.
 
     Parameters
@@ -33,7 +38,11 @@ def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, hand
     seed : int, optional
         Overrides ``params.seed``.
     hands : list of str, optional
-        Overrides ``params.candidates.hands``.
+        Overrides ``params.candidates.hands`` (built-in names or hand spec paths).
+    simulate : bool
+        Also run the grasp trials (``params.simulate``): adds ``trials`` and ``contacts``.
+    workers : int, optional
+        Overrides ``params.simulate.workers``.
     progress : callable(str), optional
         Called with a one-line message after each stage.
 
@@ -64,6 +73,14 @@ def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, hand
     timed("candidates", lambda: generate_for_hands(artefacts["classify"], hand_specs,
                                                    approach_directions=params.candidates.approach_directions,
                                                    flipped_candidates=params.candidates.flipped_candidates))
+    if simulate:
+        config = params.simulate
+        timed("simulate", lambda: run_simulation(
+            artefacts["sample"], artefacts["candidates"], hand_specs, spheres_per_object=config.spheres_per_object,
+            baseline_trials=config.baseline_trials, seed=seed,
+            workers=default_workers(config.workers if workers is None else workers),
+            settings=config.world_settings()))
+        artefacts["trials"], artefacts["contacts"] = artefacts.pop("simulate")
     return artefacts, timings
 
 
@@ -84,6 +101,7 @@ def summary(artefacts, timings, *, source, scale, seed):
                      "max": float(spheres.radii.max())},
         "classes": dict(zip(CLASSES, np.bincount(artefacts["classify"].class_id, minlength=len(CLASSES)).tolist())),
         "candidates": {str(hand): int(count) for hand, count in artefacts["candidates"].groupby("hand").size().items()},
+        **(trial_summary(artefacts["trials"]) if "trials" in artefacts else {}),
         "keys": {stage: artefact.key for stage, artefact in artefacts.items() if hasattr(artefact, "key")},
         "timings_s": {stage: round(seconds, 4) for stage, seconds in timings.items()},
     }
@@ -93,7 +111,7 @@ def write_plan(out_dir, artefacts, summary_dict):
     """Write each artefact under its DVC name and ``summary.json`` into ``out_dir``."""
     out_dir = Path(out_dir)
     for stage, artefact in artefacts.items():
-        if stage == "candidates":
+        if stage in ("candidates", "trials", "contacts"):
             write_table(out_dir / ARTEFACT_NAMES[stage], artefact)
         else:
             artefact.save(out_dir / ARTEFACT_NAMES[stage])

@@ -76,11 +76,11 @@ class GraspWorld:
     """A pybullet DIRECT client holding one object and one hand; :meth:`trial` runs a grasp."""
 
     def __init__(self, surface, hand, *, mu=0.5, cone_edges=8, torsional_friction_m=0.0,
-                 contact_tolerance_m=0.002, retract_step_m=0.005, retract_max_m=0.2, close_step_m=0.004):
+                 contact_tolerance_m=0.002, retract_step_m=0.005, retract_max_m=0.2, near_m=0.004):
         self.hand = hand
         self.mu, self.cone_edges, self.torsional_friction = mu, cone_edges, torsional_friction_m
         self.touch, self.step, self.retract_max, self.near = (contact_tolerance_m, retract_step_m,
-                                                              retract_max_m, close_step_m)
+                                                              retract_max_m, near_m)
         self.samples, self.sample_normals = surface.points, surface.normals
         self.tree = cKDTree(surface.points)  # pykdtree's OpenMP costs ms on small queries
         self.interior = InteriorGrid.build(surface)
@@ -245,8 +245,8 @@ class GraspWorld:
         try:
             return self._trial(np.asarray(grasp_point, float), np.asarray(approach, float),
                                np.asarray(orient, float), preshape)
-        except pybullet.error as err:
-            return TrialResult("error", message=str(err))
+        except Exception as err:  # noqa: BLE001 - one failed trial is counted, never kills the run
+            return TrialResult("error", message=f"{type(err).__name__}: {err}")
 
     def _trial(self, grasp_point, approach, orient, preshape):
         rotation = hand_rotation(self.hand, approach, orient)

@@ -1,0 +1,232 @@
+"""The ``simulate`` stage as functions: pick the candidates to test, add the baseline, run the
+trials (in worker processes) and summarise them.
+
+Protocol (paper IV): per hand, ``spheres_per_object`` random spheres among those with candidates
+for that hand (seeded) and all their candidates; then as many baseline trials.
+
+Baseline (the peer planner of Simox's GenericGraspPlanner and OpenRAVE, facts.md 2): a random
+surface sample (area-uniform, as the samples are), approach along its inward normal, a random
+roll about the approach. It runs through the same trial and quality code as the MAT candidates.
+
+Tables
+------
+trials (``trials.parquet``): one row per trial; ``planner`` (mat | baseline), ``hand``,
+``candidate_id`` (the candidates table's id; the draw number for the baseline), ``sphere_index``
+and ``sphere_class`` (-1 and "surface" for the baseline), ``preshape``, ``grasp_*``,
+``approach_*``, ``orient_*`` (the target), ``outcome`` (one of :data:`OUTCOMES`), ``epsilon``,
+``volume``, ``contacts``, ``retract_m``, ``base_*`` (position, m) and ``base_q*`` (quaternion
+x, y, z, w) of the hand after retract, ``joints`` (closed joint values in the hand's ``limits``
+order), ``message`` (the error, if any).
+
+contacts (``contacts.parquet``): one row per contact; ``trial`` (row number in trials),
+``link`` (pybullet link index, -1 the palm), ``x, y, z`` (m) and ``nx, ny, nz`` (outward unit
+normal).
+"""
+
+import concurrent.futures
+import multiprocessing
+import os
+
+import numpy as np
+import pandas as pd
+
+from .candidates import vectors
+from .simulation import OUTCOMES, GraspWorld
+
+CHUNK = 32
+
+
+def select_candidates(candidates, hand_name, spheres, seed):
+    """Rows of ``candidates`` for ``hand_name`` on ``spheres`` random spheres (all if fewer)."""
+    rows = candidates[candidates.hand == hand_name]
+    indices = np.unique(rows.sphere_index.to_numpy())
+    if len(indices) > spheres:
+        indices = np.sort(np.random.default_rng(seed).choice(indices, spheres, replace=False))
+    return rows[rows.sphere_index.isin(indices)].reset_index(drop=True)
+
+
+def baseline_candidates(surface, hand, count, seed):
+    """``count`` surface-normal candidates for ``hand``: random sample, approach = -normal,
+    random roll; same columns as the candidates table."""
+    rng = np.random.default_rng(seed)
+    picks = rng.integers(0, len(surface.points), count)
+    approach = -surface.normals[picks]
+    # any unit vector orthogonal to the approach, then rolled by a uniform angle
+    helper = np.where(np.abs(approach[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    first = np.cross(approach, helper)
+    first /= np.linalg.norm(first, axis=1, keepdims=True)
+    second = np.cross(approach, first)
+    roll = rng.uniform(0.0, 2.0 * np.pi, count)[:, None]
+    orient = np.cos(roll) * first + np.sin(roll) * second
+    grasp = surface.points[picks]
+    return pd.DataFrame({
+        "hand": hand.name, "id": np.arange(count), "sphere_index": -1, "sphere_class": "surface",
+        "diameter_m": np.nan, "preshape": hand.default_preshape,
+        **{f"grasp_{axis}": grasp[:, k] for k, axis in enumerate("xyz")},
+        **{f"approach_{axis}": approach[:, k] for k, axis in enumerate("xyz")},
+        **{f"orient_{axis}": orient[:, k] for k, axis in enumerate("xyz")},
+    })
+
+
+_WORKER = {}
+
+
+def _start_worker(surface, hands, settings):
+    _WORKER.update(surface=surface, hands=hands, settings=settings, worlds={})
+
+
+def _run_chunk(hand_number, targets):
+    worlds = _WORKER["worlds"]
+    if hand_number not in worlds:
+        worlds[hand_number] = GraspWorld(_WORKER["surface"], _WORKER["hands"][hand_number], **_WORKER["settings"])
+    return [worlds[hand_number].trial(*target) for target in targets]
+
+
+def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
+    """One trial per row of each table (candidate columns).
+
+    Parameters
+    ----------
+    surface : SurfaceSamples
+    hands : list of Hand
+    tables : list of (int, pandas.DataFrame)
+        Each table with the number of its hand in ``hands``.
+    settings : dict
+        Keyword arguments of :class:`GraspWorld`.
+    workers : int
+        Processes; 1 runs in this process. Results do not depend on it.
+    progress : callable(int), optional
+        Called with the number of trials just finished.
+
+    Returns
+    -------
+    list (per table) of lists of TrialResult, in table order
+    """
+    chunks = []  # (table number, hand number, targets)
+    for number, (hand_number, table) in enumerate(tables):
+        targets = list(zip(vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"),
+                           table.preshape))
+        chunks += [(number, hand_number, targets[start:start + CHUNK]) for start in range(0, len(targets), CHUNK)]
+    results = [[] for _ in tables]
+    if workers <= 1 or len(chunks) <= 1:
+        _start_worker(surface, hands, settings)
+        try:
+            for number, hand_number, targets in chunks:
+                results[number] += _run_chunk(hand_number, targets)
+                if progress:
+                    progress(len(targets))
+        finally:
+            for world in _WORKER.pop("worlds").values():
+                world.close()
+        return results
+    # spawn: the parent may hold threads (open3d, OpenMP) that fork would copy mid-flight
+    with concurrent.futures.ProcessPoolExecutor(min(workers, len(chunks)), multiprocessing.get_context("spawn"),
+                                                initializer=_start_worker,
+                                                initargs=(surface, hands, settings)) as pool:
+        done = pool.map(_run_chunk, [chunk[1] for chunk in chunks], [chunk[2] for chunk in chunks])
+        for (number, _, _), chunk in zip(chunks, done):
+            results[number] += chunk
+            if progress:
+                progress(len(chunk))
+    return results
+
+
+def default_workers(workers):
+    """``workers`` processes, or every core the process may use when 0."""
+    return workers if workers > 0 else len(os.sched_getaffinity(0))
+
+
+def simulate(surface, candidates, hands, *, spheres_per_object=200, baseline_trials=-1, seed=0,
+             workers=1, settings=None, progress=None):
+    """Trials of the selected MAT candidates and the baseline for every hand.
+
+    Parameters
+    ----------
+    surface : SurfaceSamples
+    candidates : pandas.DataFrame
+        The candidates table.
+    hands : list of Hand
+    spheres_per_object : int
+    baseline_trials : int
+        Baseline trials per hand; -1 = as many as that hand's MAT trials, 0 = none.
+    seed : int
+    workers : int
+    settings : dict, optional
+        Keyword arguments of :class:`GraspWorld`.
+    progress : callable(int), optional
+
+    Returns
+    -------
+    trials, contacts : pandas.DataFrame (see the module docstring)
+    """
+    jobs = []
+    for number, hand in enumerate(hands):
+        mat = select_candidates(candidates, hand.name, spheres_per_object, seed + number)
+        count = len(mat) if baseline_trials < 0 else baseline_trials
+        jobs += [("mat", number, mat), ("baseline", number, baseline_candidates(surface, hand, count, seed + 1000 + number))]
+    results = run_trials(surface, hands, [(number, table) for _, number, table in jobs], settings or {},
+                         workers=workers, progress=progress)
+    return _tables([(planner, hands[number], table, result) for (planner, number, table), result in zip(jobs, results)])
+
+
+def _tables(blocks):
+    trial_rows, contact_rows, offset = [], [], 0
+    for planner, hand, table, results in blocks:
+        frame = table[["id", "sphere_index", "sphere_class", "preshape"] + [
+            f"{prefix}_{axis}" for prefix in ("grasp", "approach", "orient") for axis in "xyz"]].copy()
+        frame = frame.rename(columns={"id": "candidate_id"})
+        frame["sphere_class"] = frame.sphere_class.astype(str)
+        frame.insert(0, "hand", hand.name)
+        frame.insert(0, "planner", planner)
+        frame["outcome"] = [result.outcome for result in results]
+        frame["epsilon"] = [result.epsilon for result in results]
+        frame["volume"] = [result.volume for result in results]
+        frame["contacts"] = [len(result.contact_points) for result in results]
+        frame["retract_m"] = [result.retract_m for result in results]
+        base = np.array([result.base_position for result in results]).reshape(-1, 3)
+        quaternion = np.array([result.base_orientation for result in results]).reshape(-1, 4)
+        for k, axis in enumerate("xyz"):
+            frame[f"base_{axis}"] = base[:, k]
+        for k, axis in enumerate("xyzw"):
+            frame[f"base_q{axis}"] = quaternion[:, k]
+        frame["joints"] = [list(result.joint_positions) for result in results]
+        frame["message"] = [result.message for result in results]
+        trial_rows.append(frame)
+        for number, result in enumerate(results):
+            if len(result.contact_points):
+                contact_rows.append(pd.DataFrame({
+                    "trial": offset + number, "link": result.contact_links,
+                    **{axis: result.contact_points[:, k] for k, axis in enumerate("xyz")},
+                    **{f"n{axis}": result.contact_normals[:, k] for k, axis in enumerate("xyz")}}))
+        offset += len(results)
+    trials = pd.concat(trial_rows, ignore_index=True) if trial_rows else pd.DataFrame()
+    if len(trials):
+        trials["outcome"] = pd.Categorical(trials.outcome, categories=OUTCOMES)
+    contacts = pd.concat(contact_rows, ignore_index=True) if contact_rows else pd.DataFrame(
+        {"trial": pd.Series(dtype=np.int64), "link": pd.Series(dtype=np.int64),
+         **{name: pd.Series(dtype=float) for name in ("x", "y", "z", "nx", "ny", "nz")}})
+    return trials, contacts
+
+
+def summarise(trials):
+    """``trials``, ``force_closure_rate``, ``mean_epsilon`` (over force-closure trials) and
+    ``outcomes`` counts of a trials table (or a slice of it)."""
+    closed = trials.outcome == "force_closure"
+    return {
+        "trials": int(len(trials)),
+        "force_closure_rate": float(closed.mean()) if len(trials) else 0.0,
+        "mean_epsilon": float(trials.epsilon[closed].mean()) if closed.any() else 0.0,
+        "outcomes": {outcome: int((trials.outcome == outcome).sum()) for outcome in OUTCOMES},
+    }
+
+
+def summary(trials):
+    """The JSON-ready results: MAT totals at the top level, ``baseline`` beside them and
+    ``per_hand`` for both planners."""
+    mat, baseline = trials[trials.planner == "mat"], trials[trials.planner == "baseline"]
+    return {
+        **summarise(mat),
+        "baseline": summarise(baseline),
+        "per_hand": {hand: {"mat": summarise(mat[mat.hand == hand]), "baseline": summarise(baseline[baseline.hand == hand])}
+                     for hand in sorted(trials.hand.unique())},
+    }

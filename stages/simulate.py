@@ -1,0 +1,33 @@
+"""Stage ``simulate``: python -m stages.simulate SURFACE.npz CANDIDATES.parquet TRIALS.parquet CONTACTS.parquet"""
+
+import sys
+
+from tqdm import tqdm
+
+from pipeline.artefacts import SurfaceSamples, read_table, write_table
+from pipeline.cli import one_line_errors, params, stage_args
+from pipeline.hands import get_hand
+from pipeline.trials import default_workers, simulate, summary
+
+
+@one_line_errors
+def main(argv=None):
+    args = stage_args(__doc__, "surface", "candidates", "trials", "contacts", argv=argv)
+    config = params()
+    hands = [get_hand(name) for name in config.candidates.hands]
+    surface, candidates = SurfaceSamples.load(args.surface), read_table(args.candidates)
+    with tqdm(desc=f"simulate {args.trials}", unit="trial", file=sys.stderr, mininterval=1.0) as bar:
+        trials, contacts = simulate(surface, candidates, hands, spheres_per_object=config.simulate.spheres_per_object,
+                                    baseline_trials=config.simulate.baseline_trials, seed=config.seed,
+                                    workers=default_workers(config.simulate.workers),
+                                    settings=config.simulate.world_settings(), progress=bar.update)
+    write_table(args.contacts, contacts)
+    write_table(args.trials, trials)
+    result = summary(trials)
+    print(f"simulate {args.trials}: {result['trials']} MAT trials, force closure "
+          f"{result['force_closure_rate']:.1%} (baseline {result['baseline']['force_closure_rate']:.1%} "
+          f"of {result['baseline']['trials']})")
+
+
+if __name__ == "__main__":
+    main()
