@@ -232,13 +232,22 @@ class GraspWorld:
         colliding = self.interior.contains(spheres).reshape(len(offsets), -1).any(axis=1) | \
             (gap < inscribed).any(axis=1)
         clear = (gap > radii).all(axis=1)
-        for offset, surely_clear in zip(offsets[~colliding], clear[~colliding]):
-            if surely_clear:
-                return offset
-            self._place(base - offset * approach, quaternion)
-            if not any(hit[8] < 0 for hit in self._call(pybullet.getClosestPoints, self.body, self.object, 0.0)):
-                return offset
+        spheres = spheres.reshape(len(offsets), -1, 3)
+        for step in np.flatnonzero(~colliding):
+            if clear[step]:
+                return offsets[step]
+            self._place(base - offsets[step] * approach, quaternion)
+            if any(hit[8] < 0 for hit in self._call(pybullet.getClosestPoints, self.body, self.object, 0.0)):
+                continue
+            # no link crosses the mesh; near the surface the samples' normals tell inside from out
+            if not self._inside(spheres[step]).any():
+                return offsets[step]
         return None
+
+    def _inside(self, points):
+        """(n, 3) points -> bool (n,): behind the nearest oriented surface sample."""
+        _, nearest = self.tree.query(points, k=1)
+        return np.einsum("ij,ij->i", points - self.samples[nearest], self.sample_normals[nearest]) < 0
 
     def trial(self, grasp_point, approach, orient, preshape=None):
         """Run one grasp trial; returns a :class:`TrialResult` (pybullet failures -> ``error``)."""
@@ -319,8 +328,9 @@ class GraspWorld:
 @dataclass(frozen=True)
 class InteriorGrid:
     """Voxels of a closed surface sample cloud: ``inside`` marks the interior (what a flood fill
-    from the border cannot reach past the surface voxels), ``clearance`` the distance (m)
-    between a voxel's centre and the nearest surface voxel's centre."""
+    from the border cannot reach past the dilated surface voxels: deep points only, a voxel or
+    two from the surface is left to the caller), ``clearance`` the distance (m) between a
+    voxel's centre and the nearest surface voxel's centre."""
 
     origin: np.ndarray
     voxel: float
@@ -341,7 +351,9 @@ class InteriorGrid:
         shell = np.zeros(shape, bool)
         shell[tuple(np.floor((surface.points - origin) / voxel).astype(int).T)] = True
         clearance = (ndimage.distance_transform_edt(~shell) * voxel).astype(np.float32)
-        return cls(origin, voxel, ndimage.binary_fill_holes(shell) & ~shell, clearance, np.array([low, high]))
+        # random samples leave gaps wider than the median spacing: a one-voxel dilation seals them
+        sealed = ndimage.binary_dilation(shell)
+        return cls(origin, voxel, ndimage.binary_fill_holes(sealed) & ~sealed, clearance, np.array([low, high]))
 
     def _cells(self, points):
         cell = np.floor((points - self.origin) / self.voxel).astype(np.int64)

@@ -23,23 +23,32 @@ def run(args, cwd):
 @pytest.mark.slow
 def test_plan_writes_every_artefact_and_summary(tmp_path):
     (tmp_path / "params.yaml").write_text(yaml.safe_dump({"sample": {"count": 3000}}))
-    result = run([sys.executable, "-m", "pipeline", "plan", "primitive:box", "--out", "out", "--seed", "3",
-                  "--params", "params.yaml"], tmp_path)
+    plan = [sys.executable, "-m", "pipeline", "plan", "primitive:box", "--seed", "3", "--params", "params.yaml",
+            "--spheres", "3", "--baseline", "4", "--workers", "1"]
+    result = run(plan + ["--out", "out"], tmp_path)
     assert result.returncode == 0, result.stderr
     names = {path.name for path in (tmp_path / "out").iterdir()}
     assert names == {"surface.npz", "medial_axis.npz", "spheres.npz", "sphere_grid.npz", "symmetry.npz",
-                     "candidates.parquet", "summary.json"}
+                     "candidates.parquet", "trials.parquet", "contacts.parquet", "summary.json"}
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["counts"]["surface_samples"] == 3000 and summary["seed"] == 3
-    assert set(summary["timings_s"]) == {"sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates"}
+    assert set(summary["timings_s"]) == {"sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates",
+                                         "simulate"}
+    trials = pd.read_parquet(tmp_path / "out" / "trials.parquet")
+    mat = trials[trials.planner == "mat"]
+    assert summary["trials"] == len(mat) > 0 and summary["baseline"]["trials"] == 2 * 4
+    assert sum(summary["outcomes"].values()) == len(mat)
+    assert summary["force_closure_rate"] == (mat.outcome == "force_closure").mean()
+    for hand in ("armar3", "barrett"):  # at most 3 spheres per hand, all their candidates
+        assert mat[mat.hand == hand].sphere_index.nunique() <= 3
     table = pd.read_parquet(tmp_path / "out" / "candidates.parquet")
     assert summary["candidates"] == {hand: int((table.hand == hand).sum()) for hand in ("armar3", "barrett")}
     assert sum(summary["classes"].values()) == len(np.load(tmp_path / "out" / "symmetry.npz")["class_id"])
     # the same seed gives the same artefacts
-    again = run([sys.executable, "-m", "pipeline", "plan", "primitive:box", "--out", "again", "--seed", "3",
-                 "--params", "params.yaml"], tmp_path)
+    again = run(plan + ["--out", "again"], tmp_path)
     assert again.returncode == 0
-    for name in ("surface.npz", "spheres.npz", "sphere_grid.npz", "symmetry.npz", "candidates.parquet"):
+    for name in ("surface.npz", "spheres.npz", "sphere_grid.npz", "symmetry.npz", "candidates.parquet",
+                 "trials.parquet", "contacts.parquet"):
         assert (tmp_path / "out" / name).read_bytes() == (tmp_path / "again" / name).read_bytes()
 
 
@@ -51,7 +60,8 @@ def test_plan_on_bad_mesh_is_one_line(tmp_path):
     assert result.stderr.count("\n") == 1 and not (tmp_path / "out").exists()
     unknown = run([sys.executable, "-m", "pipeline", "plan", "primitive:box", "--hand", "shadow", "--out", "out"],
                   tmp_path)
-    assert unknown.returncode == 2 and unknown.stderr == "error: unknown hand 'shadow' (built-in: armar3, barrett, parallel_jaw)\n"
+    assert unknown.returncode == 2 and unknown.stderr == \
+        "error: unknown hand 'shadow' (built-in: armar3, barrett, parallel_jaw; or a spec .yaml/.toml)\n"
     assert not (tmp_path / "out").exists()
 
 
@@ -66,6 +76,7 @@ def test_dvc_repro_caches_and_reruns_only_what_changed(tmp_path):
     params = yaml.safe_load((REPO / "params.yaml").read_text())
     params["objects"] = {"box": params["objects"]["box"], "capsule": params["objects"]["capsule"]}
     params["sample"]["count"] = 2000
+    params["simulate"].update(spheres_per_object=2, baseline_trials=3, workers=1)
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
     dvc = [sys.executable, "-m", "dvc"]
     assert run(["git", "init", "-q"], tmp_path).returncode == 0
@@ -80,9 +91,9 @@ def test_dvc_repro_caches_and_reruns_only_what_changed(tmp_path):
     third = run(dvc + ["repro"], tmp_path)
     assert third.returncode == 0, third.stderr
     ran = {line.split("'")[1] for line in third.stdout.splitlines() if line.startswith("Running stage")}
-    assert ran == {f"{stage}@{name}" for stage in ("mat", "sphere_grid", "classify", "candidates")
+    assert ran == {f"{stage}@{name}" for stage in ("mat", "sphere_grid", "classify", "candidates", "simulate")
                    for name in ("box", "capsule")}
-    assert (tmp_path / "data" / "box" / "candidates.parquet").exists()
+    assert (tmp_path / "data" / "box" / "trials.parquet").exists()
 
     # push to a local remote, then a fresh clone pulls back every artefact, byte for byte
     assert run(dvc + ["remote", "add", "-d", "store", str(tmp_path.parent / "store")], tmp_path).returncode == 0
@@ -96,6 +107,6 @@ def test_dvc_repro_caches_and_reruns_only_what_changed(tmp_path):
     pulled = run(dvc + ["pull"], clone)
     assert pulled.returncode == 0, pulled.stderr
     outputs = sorted(path.relative_to(tmp_path) for path in (tmp_path / "data").rglob("*.*") if path.name[0] != ".")
-    assert len(outputs) == 12
+    assert len(outputs) == 16
     for relative in outputs:
         assert (clone / relative).read_bytes() == (tmp_path / relative).read_bytes()

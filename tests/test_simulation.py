@@ -1,0 +1,214 @@
+"""Hands and grasp trials against known answers (paper IV; facts.md 4)."""
+
+import dataclasses
+import functools
+import itertools
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pipeline.errors import BadParamsError
+from pipeline.hands import HANDS, export_hand, get_hand, load_hand
+from pipeline.params import SampleParams
+from pipeline.sampling import sample_object
+from pipeline.simulation import OUTCOMES, GraspWorld, hand_rotation
+from pipeline.trials import baseline_candidates, run_trials, select_candidates, simulate, summarise
+
+
+@functools.lru_cache(maxsize=None)
+def surface(source, **shape):
+    return sample_object(source, scale=1.0, shape=shape or None, rng=np.random.default_rng(5), source_key=source,
+                         **dataclasses.asdict(SampleParams()))
+
+
+def cube():
+    return surface("primitive:box", extents=(0.04, 0.04, 0.04))
+
+
+def cylinder():
+    return surface("primitive:cylinder", radius=0.025, height=0.12)
+
+
+@functools.lru_cache(maxsize=None)
+def world(name, object_name):
+    return GraspWorld({"cube": cube, "cylinder": cylinder}[object_name](), HANDS[name])
+
+
+def test_hands_declare_what_the_planner_needs():
+    assert HANDS["armar3"].max_graspable_diameter == 0.094 and HANDS["barrett"].max_graspable_diameter == 0.14
+    for hand in HANDS.values():
+        assert "parallel" in hand.preshapes and hand.default_preshape == "parallel"
+        assert abs(np.dot(hand.approach, hand.wrap)) < 1e-12
+        for finger in hand.fingers:
+            assert len(finger.joints) == len(finger.ratios) and all(j in hand.limits for j in finger.joints)
+    barrett = HANDS["barrett"]
+    assert [finger.ratios for finger in barrett.fingers] == [(1.0, 0.344)] * 3
+    assert barrett.limits["f1_prox"] == (0.0, 2.44) and barrett.limits["f1_dist"] == (0.0, 0.84)
+    assert HANDS["parallel_jaw"].limits["left_slide"] == (0.0, 0.04)  # 2 x 40 mm = the 80 mm stroke
+    with pytest.raises(BadParamsError, match="unknown preshape 'pinch'"):
+        barrett.preshape("pinch")
+
+
+def test_hand_frame_maps_approach_and_wrap_onto_the_candidate():
+    approach, orient = np.array([0.0, 0.6, 0.8]), np.array([1.0, 0.0, 0.0])
+    for hand in HANDS.values():
+        rotation = hand_rotation(hand, approach, orient)
+        np.testing.assert_allclose(rotation @ hand.approach, approach, atol=1e-12)
+        np.testing.assert_allclose(rotation @ hand.wrap, orient, atol=1e-12)
+        np.testing.assert_allclose(rotation @ rotation.T, np.eye(3), atol=1e-12)
+        assert np.linalg.det(rotation) == pytest.approx(1.0)
+
+
+def test_parallel_jaw_on_a_cube_along_a_face_normal_is_force_closure():
+    result = world("parallel_jaw", "cube").trial([0, 0, 0], [0, 0, -1], [1, 0, 0])
+    assert result.outcome == "force_closure" and result.epsilon > 0
+    assert result.retract_m == 0.0  # the open jaw (80 mm) clears the 40 mm cube at once
+    # each pad stops on its face: 40 mm - 20 mm = 20 mm of travel, within the 2 mm contact tolerance
+    assert result.joint_positions == pytest.approx((0.02, 0.02), abs=0.002)
+    assert {-1} < set(result.contact_links) | {-1}
+    np.testing.assert_allclose(np.abs(result.contact_points[:, 1]), 0.02, atol=1e-9)  # on the two side faces
+
+
+def test_barrett_on_a_cylinder_approached_orthogonally_is_force_closure():
+    for angle in np.linspace(0, 2 * np.pi, 6, endpoint=False):
+        approach = np.array([np.cos(angle), np.sin(angle), 0.0])
+        result = world("barrett", "cylinder").trial([0, 0, 0.01], approach, [0, 0, 1])
+        assert result.outcome == "force_closure", angle
+        # every contact is on the cylinder's side, 25 mm from its axis
+        np.testing.assert_allclose(np.hypot(*result.contact_points[:, :2].T), 0.025, atol=2e-4)
+
+
+def test_barrett_distal_joint_follows_the_coupling_unless_its_proximal_link_stopped():
+    barrett, checked = HANDS["barrett"], 0
+    for angle, back in itertools.product(np.linspace(0, 2 * np.pi, 6, endpoint=False), (0.0, 0.05, 0.08)):
+        approach = np.array([np.cos(angle), np.sin(angle), 0.0])
+        bar = world("barrett", "cylinder")
+        # held farther out, the cylinder meets the distal links first
+        result = bar.trial(np.array([0, 0, 0.01]) - back * approach, approach, [0, 0, 1])
+        joints = dict(zip(barrett.limits, result.joint_positions))
+        for prefix in ("f1", "f2", "f3"):
+            proximal, distal = joints[f"{prefix}_prox"], joints[f"{prefix}_dist"]
+            stopped = bar.joint_index[f"{prefix}_prox"] in set(result.contact_links)
+            assert stopped or distal == pytest.approx(0.344 * proximal, abs=1e-9)
+            checked += not stopped
+    assert checked >= 3
+    # with nothing to grasp every finger closes to its limits, which the coupling matches:
+    # 0.344 x 2.44 rad = 0.839 against the distal limit 0.84 (the stop blocks the proximal joint
+    # as a contact would, and the distal closes the last 0.6 mrad on its own)
+    free = world("barrett", "cube").trial([1.0, 0, 0], [0, 0, -1], [1, 0, 0])
+    assert free.outcome == "no_contact"
+    joints = dict(zip(barrett.limits, free.joint_positions))
+    for prefix in ("f1", "f2", "f3"):
+        assert joints[f"{prefix}_prox"] == 2.44 and joints[f"{prefix}_dist"] == 0.84
+        assert joints[f"{prefix}_dist"] == pytest.approx(0.344 * joints[f"{prefix}_prox"], abs=1e-3)
+
+
+@pytest.mark.parametrize("name", sorted(HANDS))
+def test_a_sphere_wider_than_the_hand_is_never_force_closure(name):
+    radius = 0.65 * HANDS[name].max_graspable_diameter  # diameter 1.3 x the hand's limit
+    big = surface("primitive:sphere", radius=radius)
+    bigworld = GraspWorld(big, HANDS[name])
+    for approach in ([1, 0, 0], [0, 0, -1], [0, -0.6, 0.8]):
+        approach = np.array(approach, float)
+        orient = np.cross(approach, [0.3, 0.4, 0.5])
+        result = bigworld.trial([0, 0, 0], approach, orient / np.linalg.norm(orient))
+        assert result.outcome in ("no_force_closure", "collision", "no_contact")
+
+
+def test_a_pybullet_failure_is_an_error_outcome_not_a_crash():
+    doomed = GraspWorld(cube(), HANDS["parallel_jaw"])
+    doomed.close()
+    result = doomed.trial([0, 0, 0], [0, 0, -1], [1, 0, 0])
+    assert result.outcome == "error" and "error" in result.message.lower()
+
+
+def test_a_hand_deep_inside_a_large_object_is_a_collision():
+    slab = surface("primitive:box", extents=(0.6, 0.6, 0.6))
+    result = GraspWorld(slab, HANDS["parallel_jaw"], retract_max_m=0.1).trial([0, 0, 0], [0, 0, -1], [1, 0, 0])
+    assert result.outcome == "collision"
+
+
+def test_exported_hand_loads_back_and_gives_the_same_trials(tmp_path):
+    for name, hand in HANDS.items():
+        spec = export_hand(hand, tmp_path / name)
+        user = get_hand(str(spec))
+        assert user.urdf and user.fingers == hand.fingers and user.limits == hand.limits
+        assert user.preshapes == hand.preshapes and user.max_graspable_diameter == hand.max_graspable_diameter
+        object_name = "cube" if name == "parallel_jaw" else "cylinder"
+        target = ([0, 0, 0], [0, 0, -1], [1, 0, 0]) if name == "parallel_jaw" else ([0, 0, 0], [1, 0, 0], [0, 0, 1])
+        mine = GraspWorld({"cube": cube, "cylinder": cylinder}[object_name](), user).trial(*target)
+        theirs = world(name, object_name).trial(*target)
+        assert (mine.outcome, mine.joint_positions) == (theirs.outcome, theirs.joint_positions)
+        assert mine.epsilon == pytest.approx(theirs.epsilon, abs=1e-12)
+
+
+@pytest.mark.parametrize("edit, problem", [
+    (lambda spec: spec.pop("fingers"), "lacks fingers"),
+    (lambda spec: spec.update(urdf="missing.urdf"), "URDF 'missing.urdf' not found"),
+    (lambda spec: spec.update(wrap=[0, 0, 1]), "orthogonal unit vectors"),
+    (lambda spec: spec["preshapes"].update(parallel={"f1_prox": 9.0}), "outside its limits"),
+    (lambda spec: spec.update(thumbs=2), "unknown key 'thumbs'"),
+])
+def test_bad_hand_specs_are_one_line_errors(tmp_path, edit, problem):
+    import yaml
+
+    path = export_hand(HANDS["barrett"], tmp_path)
+    spec = yaml.safe_load(path.read_text())
+    edit(spec)
+    path.write_text(yaml.safe_dump(spec))
+    with pytest.raises(BadParamsError, match=problem) as error:
+        load_hand(path)
+    assert str(error.value).startswith(str(path)) and "\n" not in str(error.value)
+    with pytest.raises(BadParamsError, match="not found"):
+        load_hand(tmp_path / "nothing.yaml")
+
+
+def test_baseline_approaches_along_the_inward_normal_with_a_random_roll():
+    samples = cylinder()
+    table = baseline_candidates(samples, HANDS["barrett"], 200, seed=4)
+    approach = table[["approach_x", "approach_y", "approach_z"]].to_numpy()
+    orient = table[["orient_x", "orient_y", "orient_z"]].to_numpy()
+    grasp = table[["grasp_x", "grasp_y", "grasp_z"]].to_numpy()
+    index = [int(np.flatnonzero((samples.points == point).all(axis=1))[0]) for point in grasp]
+    np.testing.assert_allclose(approach, -samples.normals[index], atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(orient, axis=1), 1.0, atol=1e-12)
+    np.testing.assert_allclose((approach * orient).sum(axis=1), 0.0, atol=1e-12)
+    assert table.equals(baseline_candidates(samples, HANDS["barrett"], 200, seed=4))
+    # rolls are spread: the orientation's angle about the approach is not one value
+    assert np.ptp(np.arctan2(orient[:, 2], orient[:, 0])) > 3.0
+
+
+def test_simulate_tables_summary_and_worker_independence():
+    samples = cylinder()
+    rows = []
+    for sphere in range(6):  # axis spheres at z = -0.03 .. 0.02, four approaches each
+        for angle in np.linspace(0, 2 * np.pi, 4, endpoint=False):
+            rows.append({"hand": "barrett", "id": sphere * 64 + len(rows) % 4, "sphere_index": sphere,
+                         "sphere_class": "axis", "diameter_m": 0.05, "preshape": "parallel",
+                         "grasp_x": 0.0, "grasp_y": 0.0, "grasp_z": -0.03 + 0.01 * sphere,
+                         "approach_x": np.cos(angle), "approach_y": np.sin(angle), "approach_z": 0.0,
+                         "orient_x": 0.0, "orient_y": 0.0, "orient_z": 1.0})
+    candidates = pd.DataFrame(rows)
+    assert select_candidates(candidates, "barrett", 3, seed=1).sphere_index.nunique() == 3
+    trials, contacts = simulate(samples, candidates, [HANDS["barrett"]], spheres_per_object=3, baseline_trials=-1,
+                                seed=1, workers=1)
+    assert (trials.planner == "mat").sum() == 12 == (trials.planner == "baseline").sum()
+    assert set(trials.outcome.astype(str)) <= set(OUTCOMES) and not (trials.outcome == "error").any()
+    assert (trials.outcome[trials.planner == "mat"] == "force_closure").all()
+    assert contacts.groupby("trial").size().reindex(range(len(trials)), fill_value=0).tolist() == trials.contacts.tolist()
+    result = summarise(trials[trials.planner == "mat"])
+    assert result["force_closure_rate"] == 1.0 and result["outcomes"]["force_closure"] == 12
+    assert result["mean_epsilon"] == pytest.approx(trials.epsilon[trials.planner == "mat"].mean())
+    again, again_contacts = simulate(samples, candidates, [HANDS["barrett"]], spheres_per_object=3,
+                                     baseline_trials=-1, seed=1, workers=2)
+    pd.testing.assert_frame_equal(trials, again)
+    pd.testing.assert_frame_equal(contacts, again_contacts)
+
+
+def test_run_trials_keeps_table_order_across_workers():
+    table = baseline_candidates(cube(), HANDS["parallel_jaw"], 70, seed=2)
+    serial = run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], {}, workers=1)
+    parallel = run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], {}, workers=2)
+    assert [r.outcome for r in serial[0]] == [r.outcome for r in parallel[0]]
+    assert [r.epsilon for r in serial[0]] == [r.epsilon for r in parallel[0]]
