@@ -1,4 +1,4 @@
-"""Command line: ``python -m pipeline {plan,bench} ...`` (``--help`` on each)."""
+"""Command line: ``python -m pipeline {plan,bench,hands} ...`` (``--help`` on each)."""
 
 import argparse
 import json
@@ -27,16 +27,40 @@ def main(argv=None):
     plan.add_argument("--no-simulate", action="store_true", help="stop after the candidates")
     plan.add_argument("--params", default=None,
                       help=f"params file (default: {PARAMS_FILE} if present, else built-in defaults)")
-    bench = commands.add_parser("bench", help="benchmark medial_axis + mat (vs voronoi_poles) and classify + candidates")
+    bench = commands.add_parser("bench", help="benchmark medial_axis + mat (vs voronoi_poles), classify + candidates "
+                                              "and grasp trials")
     bench.add_argument("--json", default=None, help="also write the figures to this JSON file")
     bench.add_argument("--sizes", default="20000,100000,200000", help="surface sample counts, comma-separated")
     bench.add_argument("--repeats", type=int, default=3, help="runs per case; the median is reported")
+    bench.add_argument("--trials", type=int, default=100, help="grasp trials per hand in the trial table")
+    bench.add_argument("--only", choices=("medial", "symmetry", "trials"), default=None, help="run one table")
+    hands = commands.add_parser("hands", help="render the built-in hands, or export one as URDF + spec")
+    hands.add_argument("--render", metavar="DIR", help="write DIR/<hand>.png, open and closed on an object")
+    hands.add_argument("--export", nargs=2, metavar=("HAND", "DIR"),
+                       help="write DIR/HAND.urdf and DIR/HAND.yaml (a spec --hand accepts)")
     args = parser.parse_args(argv)
     if args.command == "plan":
         return _plan(args)
+    if args.command == "hands":
+        return _hands(args, hands)
     from .bench import run_bench
 
-    run_bench(sizes=[int(size) for size in args.sizes.split(",")], repeats=args.repeats, json_path=args.json)
+    run_bench(sizes=[int(size) for size in args.sizes.split(",")], repeats=args.repeats, json_path=args.json,
+              trials=args.trials, only=args.only)
+
+
+def _hands(args, parser):
+    if not (args.render or args.export):
+        parser.error("give --render DIR and/or --export HAND DIR")
+    if args.export:
+        from .hands import export_hand, get_hand
+
+        print(f"wrote {export_hand(get_hand(args.export[0]), args.export[1])}")
+    if args.render:
+        from .render import render_builtin_hands
+
+        for path in render_builtin_hands(args.render):
+            print(f"wrote {path}")
 
 
 def _plan(args):

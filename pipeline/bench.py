@@ -13,13 +13,15 @@ import numpy as np
 
 from . import sphere_grid
 from .artefacts import atomic_write
-from .candidates import generate_for_hands
+from .candidates import generate, generate_for_hands, vectors
 from .hands import HANDS
 from .mat import reconstruct
 from .medial_axis import medial_axis
 from .params import CandidatesParams, ClassifyParams, MatParams, MedialAxisParams, SampleParams
 from .sampling import sample_object
+from .simulation import GraspWorld
 from .symmetry import classify
+from .trials import default_workers, run_trials
 
 BOX_HALF = np.array([0.05, 0.03, 0.01])
 CAPSULE_RADIUS, CAPSULE_HALF_LENGTH = 0.02, 0.05
@@ -52,15 +54,22 @@ def _measure(surface, method, repeats):
     return float(np.median(times)), peak, spheres
 
 
-def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, out=print):
-    """Print (and optionally save) both benchmark tables; returns the rows."""
-    rows = run_medial_bench(sizes=sizes, repeats=repeats, out=out)
-    out("")
-    symmetry_rows = run_symmetry_bench(repeats=repeats, out=out)
+def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, trials=100, only=None, out=print):
+    """Print (and optionally save) the benchmark tables (``only``: one of medial, symmetry,
+    trials); returns {table: rows}."""
+    tables = {}
+    if only in (None, "medial"):
+        tables["medial"] = run_medial_bench(sizes=sizes, repeats=repeats, out=out)
+        out("")
+    if only in (None, "symmetry"):
+        tables["symmetry"] = run_symmetry_bench(repeats=repeats, out=out)
+        out("")
+    if only in (None, "trials"):
+        tables["trials"] = run_trial_bench(trials=trials, out=out)
     if json_path:
-        text = json.dumps({"repeats": repeats, "medial": rows, "symmetry": symmetry_rows}, indent=2).encode()
+        text = json.dumps({"repeats": repeats, **tables}, indent=2).encode()
         atomic_write(json_path, lambda stream: stream.write(text))
-    return rows, symmetry_rows
+    return tables
 
 
 def run_medial_bench(*, sizes=(20000, 100000, 200000), repeats=3, out=print):
@@ -117,4 +126,60 @@ def run_symmetry_bench(*, sphere_counts=(10000, 100000), repeats=3, out=print):
             out(f"{shape:8} {len(grid):8d} {len(symmetry):8d} {seconds:9.3f} {row['us_per_sphere']:10.2f} "
                 f"{len(table):10d}")
     out("paper: 10-100 ms per sphere (Python, 2011); target <= 10 us per sphere")
+    return rows
+
+
+def trial_bench_surface():
+    """The duck of pybullet_data, 10 cm long, with each triangle split in four (16,848 triangles)."""
+    import tempfile
+    from pathlib import Path
+
+    from .objects import load_source
+
+    _, mesh = load_source("pybullet:duck.obj", scale=0.06)
+    mesh = mesh.subdivide()
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "duck.ply"
+        mesh.export(path)
+        return sample_object(str(path), rng=np.random.default_rng(0), source_key="bench-duck", **vars(SampleParams())), \
+            len(mesh.faces)
+
+
+def run_trial_bench(*, trials=100, out=print):
+    """Grasp trials per second per hand on a ~17k-triangle duck: one core (per-trial median
+    and throughput) and every core (worker processes, start-up included); returns the rows."""
+    surface, faces = trial_bench_surface()
+    axis = medial_axis(surface, **vars(MedialAxisParams()))
+    symmetry = classify(sphere_grid.build(reconstruct(surface, axis, **vars(MatParams()))), **vars(ClassifyParams()))
+    cores = default_workers(0)
+    out(f"grasp trials on the duck ({faces} triangles, {len(surface.points)} samples), {trials} random MAT "
+        f"candidates per hand; all cores = {cores}")
+    out(f"{'hand':13} {'ms/trial':>9} {'trials/s':>9} {'trials/s':>9} {'x paper':>8}  outcomes")
+    out(f"{'':13} {'median':>9} {'1 core':>9} {'all':>9} {'(1 core)':>8}")
+    rows = []
+    for name, hand in HANDS.items():
+        table = generate(symmetry, hand)
+        table = table.sample(min(trials, len(table)), random_state=0).reset_index(drop=True)
+        world = GraspWorld(surface, hand)
+        times, outcomes = [], []
+        start_all = time.perf_counter()
+        for grasp, approach, orient in zip(vectors(table, "grasp"), vectors(table, "approach"),
+                                           vectors(table, "orient")):
+            start = time.perf_counter()
+            outcomes.append(world.trial(grasp, approach, orient).outcome)
+            times.append(time.perf_counter() - start)
+        serial = len(table) / (time.perf_counter() - start_all)
+        world.close()
+        start = time.perf_counter()
+        run_trials(surface, [hand], [(0, table)], {}, workers=cores)
+        parallel = len(table) / (time.perf_counter() - start)
+        median_ms = 1e3 * float(np.median(times))
+        counts = {outcome: outcomes.count(outcome) for outcome in sorted(set(outcomes))}
+        row = dict(hand=name, trials=len(table), median_ms=round(median_ms, 2), trials_per_s_1core=round(serial, 1),
+                   trials_per_s_all=round(parallel, 1), cores=cores, speedup_vs_paper=round(0.5 * serial, 1),
+                   outcomes=counts)
+        rows.append(row)
+        out(f"{name:13} {median_ms:9.1f} {serial:9.1f} {parallel:9.1f} {0.5 * serial:7.0f}x  "
+            + ", ".join(f"{key} {value}" for key, value in counts.items()))
+    out("paper: 0.5 s per trial (one core, 2011); target >= 100 trials/s per core")
     return rows

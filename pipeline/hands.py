@@ -237,7 +237,7 @@ def export_hand(hand, folder):
     folder = Path(folder)
     urdf = urdf_text(hand).encode() if hand.urdf is None else Path(hand.urdf).read_bytes()
     atomic_write(folder / f"{hand.name}.urdf", lambda stream: stream.write(urdf))
-    text = yaml.safe_dump(spec_dict(hand, f"{hand.name}.urdf"), sort_keys=False).encode()
+    text = yaml.safe_dump(spec_dict(hand, f"{hand.name}.urdf"), sort_keys=False, default_flow_style=None).encode()
     atomic_write(folder / f"{hand.name}.yaml", lambda stream: stream.write(text))
     return folder / f"{hand.name}.yaml"
 

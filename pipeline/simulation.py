@@ -28,7 +28,7 @@ import tempfile
 from dataclasses import dataclass, field
 
 import numpy as np
-import pybullet
+from .bullet import pybullet
 from scipy.spatial import cKDTree
 
 from .errors import BadParamsError

@@ -86,13 +86,17 @@ def test_dvc_repro_caches_and_reruns_only_what_changed(tmp_path):
     assert (tmp_path / "data" / "capsule" / "sphere_grid.npz").exists()
     second = run(dvc + ["repro"], tmp_path)
     assert second.returncode == 0 and "Running stage" not in second.stdout
+    before = {name: (tmp_path / "data" / name / "candidates.parquet").read_bytes() for name in ("box", "capsule")}
     params["mat"]["tau"] = 0.02
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
     third = run(dvc + ["repro"], tmp_path)
     assert third.returncode == 0, third.stderr
     ran = {line.split("'")[1] for line in third.stdout.splitlines() if line.startswith("Running stage")}
-    assert ran == {f"{stage}@{name}" for stage in ("mat", "sphere_grid", "classify", "candidates", "simulate")
-                   for name in ("box", "capsule")}
+    assert ran - {"simulate@box", "simulate@capsule"} == {
+        f"{stage}@{name}" for stage in ("mat", "sphere_grid", "classify", "candidates") for name in ("box", "capsule")}
+    for name in ("box", "capsule"):  # trials rerun only where the candidates changed
+        changed = (tmp_path / "data" / name / "candidates.parquet").read_bytes() != before[name]
+        assert (f"simulate@{name}" in ran) == changed
     assert (tmp_path / "data" / "box" / "trials.parquet").exists()
 
     # push to a local remote, then a fresh clone pulls back every artefact, byte for byte

@@ -212,3 +212,20 @@ def test_run_trials_keeps_table_order_across_workers():
     parallel = run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], {}, workers=2)
     assert [r.outcome for r in serial[0]] == [r.outcome for r in parallel[0]]
     assert [r.epsilon for r in serial[0]] == [r.epsilon for r in parallel[0]]
+
+
+def test_hand_pictures_show_the_hand_open_and_closed_on_the_object(tmp_path):
+    from PIL import Image
+
+    from pipeline.render import closed_joints, render_open_closed
+
+    closed = closed_joints(HANDS["barrett"])
+    assert closed["f1_prox"] == 2.44 and closed["f1_dist"] == pytest.approx(0.344 * 2.44)
+    path = render_open_closed(HANDS["barrett"], tmp_path / "barrett.png", surface=cylinder(),
+                              target=([0, 0, 0.01], [1, 0, 0], [0, 0, 1]), size=(120, 100))
+    image = np.asarray(Image.open(path))
+    assert image.shape == (100, 240, 3)
+    open_half, closed_half = image[:, :120].astype(int), image[:, 120:].astype(int)
+    orange = (image[..., 0] > 150) & (image[..., 2] < 120)  # the object's colour
+    assert orange[:, :120].sum() > 100 and orange[:, 120:].sum() > 100
+    assert np.abs(open_half - closed_half).sum(axis=2).astype(bool).mean() > 0.02  # the fingers moved
