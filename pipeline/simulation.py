@@ -127,6 +127,8 @@ class GraspWorld:
                                       for joint in finger.joints])
         self.boxes = self._boxes()
         self.cover = _cover_spheres(self.boxes[2])
+        finger = np.isin(self.cover[2], self.finger_links + 1)  # the cover is sorted by link
+        self.finger_cover = finger, np.flatnonzero(np.diff(self.cover[2][finger], prepend=-2))
         self.levers = self._levers()
 
     def _boxes(self):
@@ -200,10 +202,10 @@ class GraspWorld:
         centres, rotations = self._poses()
         _, radii, owner, _ = self.cover
         spheres = self._cover(centres, rotations)
-        finger = np.isin(owner, self.finger_links + 1)
-        gap = self.interior.distance_bound(spheres[finger])
+        finger, starts = self.finger_cover
         distances = np.full(len(centres), np.inf)
-        np.minimum.at(distances, owner[finger], gap - radii[finger])
+        distances[owner[finger][starts]] = np.minimum.reduceat(
+            self.interior.distance_bound(spheres[finger]) - radii[finger], starts)
         for slot in np.flatnonzero(distances < self.near):
             corners = _box_corners(centres[slot], rotations[slot], self.boxes[2][slot])
             if slot not in cache or np.linalg.norm(corners - cache[slot][0], axis=1).max() > self.near:
@@ -231,18 +233,28 @@ class GraspWorld:
         # a sample in a cell's inscribed sphere lies on the mesh and inside a link
         colliding = self.interior.contains(spheres).reshape(len(offsets), -1).any(axis=1) | \
             (gap < inscribed).any(axis=1)
-        clear = (gap > radii).all(axis=1)
+        unsure = gap <= radii
         spheres = spheres.reshape(len(offsets), -1, 3)
         for step in np.flatnonzero(~colliding):
-            if clear[step]:
+            if not unsure[step].any():
                 return offsets[step]
             self._place(base - offsets[step] * approach, quaternion)
-            if any(hit[8] < 0 for hit in self._call(pybullet.getClosestPoints, self.body, self.object, 0.0)):
+            # only the links near the mesh: a query's cost grows with the triangles in its box
+            links = np.unique(self.cover[2][unsure[step]]) - 1
+            if any(hit[8] < 0 for link in links for hit in self._call(
+                    pybullet.getClosestPoints, self.body, self.object, 0.0, linkIndexA=int(link))):
                 continue
             # no link crosses the mesh; near the surface the samples' normals tell inside from out
             if not self._inside(spheres[step]).any():
                 return offsets[step]
         return None
+
+    def _touching_links(self):
+        """Links that may lie within the contact tolerance of the mesh: a covering sphere comes
+        within the tolerance of a sample, with ``self.near`` to spare for the mesh between samples."""
+        reach = self.cover[1] + self.touch + self.near
+        gap, _ = self.tree.query(self._cover(*self._poses()), k=1, distance_upper_bound=reach.max())
+        return [int(slot) - 1 for slot in np.unique(self.cover[2][gap <= reach])]
 
     def _inside(self, points):
         """(n, 3) points -> bool (n,): behind the nearest oriented surface sample."""
@@ -270,7 +282,8 @@ class GraspWorld:
         base = base - cleared * approach
         self._place(base, quaternion)
         joints = self._close(joints)
-        hits = self._call(pybullet.getClosestPoints, self.body, self.object, self.touch)
+        hits = [hit for link in self._touching_links()
+                for hit in self._call(pybullet.getClosestPoints, self.body, self.object, self.touch, linkIndexA=link)]
         pose = dict(retract_m=float(cleared), base_position=tuple(base), base_orientation=tuple(quaternion),
                     joint_positions=tuple(joints[name] for name in self.hand.limits))
         if not hits:
