@@ -5,17 +5,21 @@ URDF whose joints are set directly. Per candidate (P_g, P_d, P_o, preshape):
 
 1. place the hand so its grasp centre is at P_g, its approach axis along P_d and its wrap axis
    along P_o, in the preshape;
-2. retract along -P_d in ``retract_step_m`` steps, at most ``retract_max_m``, until no link
-   touches the mesh nor lies inside it (pybullet only sees the mesh surface, so a link swallowed
-   whole is caught by an inside test against the oriented surface samples); never clear ->
-   ``collision``;
+2. retract along -P_d in ``retract_step_m`` steps, at most ``retract_max_m``, until the hand is
+   clear; never clear -> ``collision``. Each link's box is covered by spheres; a retreat is
+   clear at once when every sphere is farther from the surface samples than its radius, and in
+   collision when a sample lies in a sphere inscribed in a link or a sphere centre is in the
+   interior voxels (pybullet sees only the mesh surface, so a link swallowed whole is invisible
+   to it); otherwise pybullet checks the links near the mesh, then the samples' normals;
 3. close every finger at once, joints coupled by their ratios, by conservative advancement: each
-   step moves no point of a finger farther than its measured distance to the object (capped at
-   ``close_step_m``), so a finger cannot tunnel and a few queries reach contact. A link within
-   ``contact_tolerance_m`` stops its joint and the joints before it; the joints after it close on
-   (the Barrett breakaway);
-4. contacts = the mesh points within ``contact_tolerance_m`` of the closed hand, normals from the
-   nearest surface sample (pybullet's are unreliable on triangle edges);
+   step moves no point of a link farther than its distance to the surface samples (exact below
+   ``near_m``, a voxel bound beyond), so no finger tunnels through the object. A link within
+   ``contact_tolerance_m`` of the samples stops its joint and the joints before it; the joints
+   after it close on (the Barrett breakaway). Distances to samples stand in for distances to the
+   mesh here: pybullet queries against a concave mesh cost about 1 ms each, 10-50x a step;
+4. contacts = the mesh points (pybullet) within ``contact_tolerance_m`` of the closed hand, two
+   per touching link (:func:`_patch_ends`), normals from the nearest surface sample (pybullet's
+   are unreliable on triangle edges);
 5. Ferrari-Canny epsilon (:mod:`pipeline.quality`), torque scaled by the object's largest
    distance from its centre of mass (GraspIt, Dex-Net).
 

@@ -114,3 +114,24 @@ def test_dvc_repro_caches_and_reruns_only_what_changed(tmp_path):
     assert len(outputs) == 16
     for relative in outputs:
         assert (clone / relative).read_bytes() == (tmp_path / relative).read_bytes()
+
+
+@pytest.mark.slow
+def test_hands_cli_exports_a_hand_that_plan_accepts_and_renders_pictures(tmp_path):
+    exported = run([sys.executable, "-m", "pipeline", "hands", "--export", "parallel_jaw", "myhand"], tmp_path)
+    assert exported.returncode == 0, exported.stderr
+    assert {path.name for path in (tmp_path / "myhand").iterdir()} == {"parallel_jaw.urdf", "parallel_jaw.yaml"}
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump({"sample": {"count": 3000}}))
+    planned = run([sys.executable, "-m", "pipeline", "plan", "primitive:box", "--hand", "myhand/parallel_jaw.yaml",
+                   "--params", "params.yaml", "--spheres", "2", "--baseline", "3", "--workers", "1", "--out", "out"],
+                  tmp_path)
+    assert planned.returncode == 0, planned.stderr
+    trials = pd.read_parquet(tmp_path / "out" / "trials.parquet")
+    assert set(trials.hand) == {"parallel_jaw"} and (trials.planner == "baseline").sum() == 3
+    rendered = run([sys.executable, "-m", "pipeline", "hands", "--render", "pictures"], tmp_path)
+    assert rendered.returncode == 0, rendered.stderr
+    assert {path.name for path in (tmp_path / "pictures").iterdir()} == {"armar3.png", "barrett.png",
+                                                                         "parallel_jaw.png"}
+    bad = run([sys.executable, "-m", "pipeline", "plan", "primitive:box", "--hand", "nohand.yaml", "--out", "x"],
+              tmp_path)
+    assert bad.returncode == 2 and bad.stderr == "error: nohand.yaml: hand spec not found\n"
