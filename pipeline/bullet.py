@@ -19,3 +19,20 @@ def _import_quietly():
 
 
 pybullet = _import_quietly()
+
+
+def load_hand(hand, client):
+    """Load ``hand``'s URDF (its file, or a built-in's generated text) as a fixed-base body."""
+    import tempfile
+
+    from .hands import urdf_text
+
+    if hand.urdf is not None:
+        return pybullet.loadURDF(hand.urdf, useFixedBase=True, physicsClientId=client)
+    descriptor, path = tempfile.mkstemp(suffix=".urdf")
+    try:
+        with os.fdopen(descriptor, "w") as stream:
+            stream.write(urdf_text(hand))
+        return pybullet.loadURDF(path, useFixedBase=True, physicsClientId=client)
+    finally:
+        os.unlink(path)

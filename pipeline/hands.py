@@ -203,11 +203,11 @@ def urdf_text(hand):
     def vec(values):
         return " ".join(f"{value:.6g}" for value in values)
 
-    lines = [f'<?xml version="1.0"?>', f'<robot name="{hand.name}">']
+    lines = ['<?xml version="1.0"?>', f'<robot name="{hand.name}">']
     for link in hand.links:
         box = f'<origin xyz="{vec(link.centre)}"/><geometry><box size="{vec(link.size)}"/></geometry>'
         lines += [f'  <link name="{link.name}">',
-                  f'    <inertial><mass value="0.1"/><inertia ixx="1e-4" iyy="1e-4" izz="1e-4" ixy="0" ixz="0" iyz="0"/></inertial>',
+                  '    <inertial><mass value="0.1"/><inertia ixx="1e-4" iyy="1e-4" izz="1e-4" ixy="0" ixz="0" iyz="0"/></inertial>',
                   f'    <visual>{box}<material name="{link.name}_colour"><color rgba="{vec(link.rgba)}"/></material></visual>',
                   f'    <collision>{box}</collision>', '  </link>']
     for joint in hand.joints:

@@ -1,13 +1,9 @@
 """Pictures of the hands, open (the default preshape) and closed, from pybullet's software
 renderer (headless: no display or GPU needed)."""
 
-import os
-import tempfile
-
 import numpy as np
-from .bullet import pybullet
 
-from .hands import urdf_text
+from .bullet import load_hand, pybullet
 
 
 def closed_joints(hand):
@@ -29,7 +25,7 @@ def render_hand(hand, joints, *, base=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), s
     the approach axis up."""
     client = pybullet.connect(pybullet.DIRECT)
     try:
-        body = _load(hand, client)
+        body = load_hand(hand, client)
         names = {pybullet.getJointInfo(body, index, physicsClientId=client)[1].decode(): index
                  for index in range(pybullet.getNumJoints(body, physicsClientId=client))}
         rotation = np.array(pybullet.getMatrixFromQuaternion(base[1])).reshape(3, 3)
@@ -59,18 +55,6 @@ def render_hand(hand, joints, *, base=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), s
         return np.asarray(image, np.uint8).reshape(size[1], size[0], 4)[..., :3]
     finally:
         pybullet.disconnect(physicsClientId=client)
-
-
-def _load(hand, client):
-    if hand.urdf is not None:
-        return pybullet.loadURDF(hand.urdf, useFixedBase=True, physicsClientId=client)
-    descriptor, path = tempfile.mkstemp(suffix=".urdf")
-    try:
-        with os.fdopen(descriptor, "w") as stream:
-            stream.write(urdf_text(hand))
-        return pybullet.loadURDF(path, useFixedBase=True, physicsClientId=client)
-    finally:
-        os.unlink(path)
 
 
 def render_open_closed(hand, path, *, surface=None, target=None, size=(480, 480)):

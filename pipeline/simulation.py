@@ -27,16 +27,13 @@ Outcomes: ``force_closure``, ``no_force_closure``, ``no_contact``, ``collision``
 """
 
 import itertools
-import os
-import tempfile
 from dataclasses import dataclass, field
 
 import numpy as np
-from .bullet import pybullet
 from scipy.spatial import cKDTree
 
+from .bullet import load_hand, pybullet
 from .errors import BadParamsError
-from .hands import urdf_text
 from .quality import epsilon_quality
 
 OUTCOMES = ("force_closure", "no_force_closure", "no_contact", "collision", "error")
@@ -97,22 +94,11 @@ class GraspWorld:
         self.object = pybullet.createMultiBody(0, shape, physicsClientId=self.client)
         # exact distances: Bullet pads meshes with a 1 mm margin by default
         pybullet.changeDynamics(self.object, -1, collisionMargin=0.0, physicsClientId=self.client)
-        self.body = self._load_hand()
+        self.body = load_hand(self.hand, self.client)
         self._index_joints()
 
     def _call(self, function, *args, **kwargs):
         return function(*args, physicsClientId=self.client, **kwargs)
-
-    def _load_hand(self):
-        if self.hand.urdf is not None:
-            return self._call(pybullet.loadURDF, self.hand.urdf, useFixedBase=True)
-        descriptor, path = tempfile.mkstemp(suffix=".urdf")
-        try:
-            with os.fdopen(descriptor, "w") as stream:
-                stream.write(urdf_text(self.hand))
-            return self._call(pybullet.loadURDF, path, useFixedBase=True)
-        finally:
-            os.unlink(path)
 
     def _index_joints(self):
         info = [self._call(pybullet.getJointInfo, self.body, index)

@@ -95,8 +95,8 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
         Keyword arguments of :class:`GraspWorld`.
     workers : int
         Processes; 1 runs in this process. Results do not depend on it.
-    progress : callable(int), optional
-        Called with the number of trials just finished.
+    progress : callable(int, int), optional
+        Called with the number of trials just finished and the total.
 
     Returns
     -------
@@ -108,13 +108,14 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
                            table.preshape))
         chunks += [(number, hand_number, targets[start:start + CHUNK]) for start in range(0, len(targets), CHUNK)]
     results = [[] for _ in tables]
+    total = sum(len(table) for _, table in tables)
     if workers <= 1 or len(chunks) <= 1:
         _start_worker(surface, hands, settings)
         try:
             for number, hand_number, targets in chunks:
                 results[number] += _run_chunk(hand_number, targets)
                 if progress:
-                    progress(len(targets))
+                    progress(len(targets), total)
         finally:
             for world in _WORKER.pop("worlds").values():
                 world.close()
@@ -127,7 +128,7 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
         for (number, _, _), chunk in zip(chunks, done):
             results[number] += chunk
             if progress:
-                progress(len(chunk))
+                progress(len(chunk), total)
     return results
 
 
@@ -153,7 +154,8 @@ def simulate(surface, candidates, hands, *, spheres_per_object=200, baseline_tri
     workers : int
     settings : dict, optional
         Keyword arguments of :class:`GraspWorld`.
-    progress : callable(int), optional
+    progress : callable(int, int), optional
+        Called with the number of trials just finished and the total.
 
     Returns
     -------

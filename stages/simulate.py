@@ -17,10 +17,14 @@ def main(argv=None):
     hands = [get_hand(name) for name in config.candidates.hands]
     surface, candidates = SurfaceSamples.load(args.surface), read_table(args.candidates)
     with tqdm(desc=f"simulate {args.trials}", unit="trial", file=sys.stderr, mininterval=1.0) as bar:
+        def progress(done, total):
+            bar.total = total
+            bar.update(done)
+
         trials, contacts = simulate(surface, candidates, hands, spheres_per_object=config.simulate.spheres_per_object,
                                     baseline_trials=config.simulate.baseline_trials, seed=config.seed,
                                     workers=default_workers(config.simulate.workers),
-                                    settings=config.simulate.world_settings(), progress=bar.update)
+                                    settings=config.simulate.world_settings(), progress=progress)
     write_table(args.contacts, contacts)
     write_table(args.trials, trials)
     result = summary(trials)
