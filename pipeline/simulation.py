@@ -182,10 +182,10 @@ class GraspWorld:
         for joint, value in values.items():
             self._call(pybullet.resetJointState, self.body, self.joint_index[joint], value)
 
-    def _finger_distances(self, cache):
+    def _finger_distances(self, cache, wanted):
         """Per link slot: its distance (m) to the surface samples, exact below ``self.near`` and a
-        lower bound above (from the spheres covering each box), for the finger links only (inf
-        for the others), so closing steps stay conservative.
+        lower bound above (from the spheres covering each box), for the slots in the boolean
+        mask ``wanted`` only (inf for the others), so closing steps stay conservative.
 
         ``cache`` (slot -> (corners, sample indices)) keeps the samples gathered round a link
         until the link has moved ``self.near`` from where they were gathered."""
@@ -196,6 +196,7 @@ class GraspWorld:
         distances = np.full(len(centres), np.inf)
         distances[owner[finger][starts]] = np.minimum.reduceat(
             self.interior.distance_bound(spheres[finger]) - radii[finger], starts)
+        distances[~wanted] = np.inf  # stopped fingers: their exact distances would cost the most
         for slot in np.flatnonzero(distances < self.near):
             corners = _box_corners(centres[slot], rotations[slot], self.boxes[2][slot])
             if slot not in cache or np.linalg.norm(corners - cache[slot][0], axis=1).max() > self.near:
@@ -235,7 +236,8 @@ class GraspWorld:
                     pybullet.getClosestPoints, self.body, self.object, 0.0, linkIndexA=int(link))):
                 continue
             # no link crosses the mesh; near the surface the samples' normals tell inside from out
-            if not self._inside(spheres[step]).any():
+            # (a sphere clear of the samples is outside, or deep enough for the interior voxels)
+            if not self._inside(spheres[step][unsure[step]]).any():
                 return offsets[step]
         return None
 
@@ -299,7 +301,12 @@ class GraspWorld:
         for _ in range(_MAX_CLOSE_STEPS):
             if not any(moving.any() for _, _, moving, _ in fingers):
                 break
-            distances = self._finger_distances(cache)
+            wanted = np.zeros(len(self.links), bool)  # the links that moving joints carry
+            for _, columns, moving, _ in fingers:
+                if moving.any():
+                    wanted[columns[np.argmax(moving):]] = True
+            distances = self._finger_distances(cache, wanted)
+            moved = {}
             for finger, columns, moving, levers in fingers:
                 finger_d = distances[columns]
                 touching = np.flatnonzero(finger_d <= self.touch)
@@ -315,10 +322,10 @@ class GraspWorld:
                 for position in np.flatnonzero(moving):
                     joint = finger.joints[position]
                     upper = self.hand.limits[joint][1]
-                    joints[joint] = min(joints[joint] + finger.ratios[position] * advance, upper)
+                    joints[joint] = moved[joint] = min(joints[joint] + finger.ratios[position] * advance, upper)
                     if joints[joint] >= upper:
                         moving[position] = False
-            self._set_joints(joints)
+            self._set_joints(moved)
         return joints
 
     def close(self):
@@ -458,3 +465,28 @@ def _quaternion(rotation):
     from scipy.spatial.transform import Rotation
 
     return tuple(Rotation.from_matrix(rotation).as_quat())
+
+
+# A worker process's worlds, one per hand, built on first use (pipeline.trials runs the pool;
+# these live here so that a spawned worker imports only this module's dependencies).
+_WORKER = {}
+
+
+def start_worker(surface, hands, settings):
+    """Set up this process to run trials on ``surface`` with ``hands`` (GraspWorld ``settings``)."""
+    _WORKER.update(surface=surface, hands=hands, settings=settings, worlds={})
+
+
+def run_chunk(hand_number, targets):
+    """Trials of ``targets`` ((P_g, P_d, P_o, preshape) tuples) with hand ``hand_number``."""
+    worlds = _WORKER["worlds"]
+    if hand_number not in worlds:
+        worlds[hand_number] = GraspWorld(_WORKER["surface"], _WORKER["hands"][hand_number], **_WORKER["settings"])
+    return [worlds[hand_number].trial(*target) for target in targets]
+
+
+def stop_worker():
+    """Disconnect this process's worlds."""
+    for world in _WORKER.pop("worlds", {}).values():
+        world.close()
+    _WORKER.clear()

@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from .candidates import vectors
-from .simulation import OUTCOMES, GraspWorld
+from .simulation import OUTCOMES, run_chunk, start_worker, stop_worker
 
 CHUNK = 32
 
@@ -68,20 +68,6 @@ def baseline_candidates(surface, hand, count, seed):
     })
 
 
-_WORKER = {}
-
-
-def _start_worker(surface, hands, settings):
-    _WORKER.update(surface=surface, hands=hands, settings=settings, worlds={})
-
-
-def _run_chunk(hand_number, targets):
-    worlds = _WORKER["worlds"]
-    if hand_number not in worlds:
-        worlds[hand_number] = GraspWorld(_WORKER["surface"], _WORKER["hands"][hand_number], **_WORKER["settings"])
-    return [worlds[hand_number].trial(*target) for target in targets]
-
-
 def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
     """One trial per row of each table (candidate columns).
 
@@ -110,21 +96,20 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
     results = [[] for _ in tables]
     total = sum(len(table) for _, table in tables)
     if workers <= 1 or len(chunks) <= 1:
-        _start_worker(surface, hands, settings)
+        start_worker(surface, hands, settings)
         try:
             for number, hand_number, targets in chunks:
-                results[number] += _run_chunk(hand_number, targets)
+                results[number] += run_chunk(hand_number, targets)
                 if progress:
                     progress(len(targets), total)
         finally:
-            for world in _WORKER.pop("worlds").values():
-                world.close()
+            stop_worker()
         return results
     # spawn: the parent may hold threads (open3d, OpenMP) that fork would copy mid-flight
     with concurrent.futures.ProcessPoolExecutor(min(workers, len(chunks)), multiprocessing.get_context("spawn"),
-                                                initializer=_start_worker,
+                                                initializer=start_worker,
                                                 initargs=(surface, hands, settings)) as pool:
-        done = pool.map(_run_chunk, [chunk[1] for chunk in chunks], [chunk[2] for chunk in chunks])
+        done = pool.map(run_chunk, [chunk[1] for chunk in chunks], [chunk[2] for chunk in chunks])
         for (number, _, _), chunk in zip(chunks, done):
             results[number] += chunk
             if progress:

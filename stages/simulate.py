@@ -2,16 +2,18 @@
 
 import sys
 
-from tqdm import tqdm
-
-from pipeline.artefacts import SurfaceSamples, read_table, write_table
 from pipeline.cli import one_line_errors, params, stage_args
-from pipeline.hands import get_hand
-from pipeline.trials import default_workers, simulate, summary
 
 
 @one_line_errors
 def main(argv=None):
+    # imported here: trial workers are spawned and re-import this module, and need none of it
+    from tqdm import tqdm
+
+    from pipeline.artefacts import SurfaceSamples, read_table, write_table
+    from pipeline.hands import get_hand
+    from pipeline.trials import default_workers, simulate, summary
+
     args = stage_args(__doc__, "surface", "candidates", "trials", "contacts", argv=argv)
     config = params()
     hands = [get_hand(name) for name in config.candidates.hands]
