@@ -229,3 +229,22 @@ def test_hand_pictures_show_the_hand_open_and_closed_on_the_object(tmp_path):
     orange = (image[..., 0] > 150) & (image[..., 2] < 120)  # the object's colour
     assert orange[:, :120].sum() > 100 and orange[:, 120:].sum() > 100
     assert np.abs(open_half - closed_half).sum(axis=2).astype(bool).mean() > 0.02  # the fingers moved
+
+
+def test_a_toml_hand_spec_reads_like_the_yaml_one(tmp_path):
+    import yaml
+
+    spec = yaml.safe_load(export_hand(HANDS["parallel_jaw"], tmp_path).read_text())
+
+    def toml_value(value):
+        if isinstance(value, dict):
+            return "{" + ", ".join(f"{key} = {toml_value(item)}" for key, item in value.items()) + "}"
+        if isinstance(value, list):
+            return "[" + ", ".join(toml_value(item) for item in value) + "]"
+        return f'"{value}"' if isinstance(value, str) else repr(value)
+
+    (tmp_path / "jaw.toml").write_text("".join(f"{key} = {toml_value(value)}\n" for key, value in spec.items()))
+    assert load_hand(tmp_path / "jaw.toml") == load_hand(tmp_path / "parallel_jaw.yaml")
+    (tmp_path / "broken.toml").write_text("name = \n")
+    with pytest.raises(BadParamsError, match="not valid TOML"):
+        load_hand(tmp_path / "broken.toml")
