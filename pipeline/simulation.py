@@ -208,7 +208,9 @@ class GraspWorld:
                 distances[slot] = self.near
                 continue
             local = np.abs((self.samples[near] - centres[slot]) @ rotations[slot])
-            distances[slot] = np.sqrt(np.square(np.maximum(local - self.boxes[2][slot], 0.0)).sum(axis=1).min())
+            exact = np.sqrt(np.square(np.maximum(local - self.boxes[2][slot], 0.0)).sum(axis=1).min())
+            # samples left out of the gathering are farther than self.near: beyond it, a bound
+            distances[slot] = min(exact, self.near)
         return distances
 
     def _retract(self, base, quaternion, approach):
