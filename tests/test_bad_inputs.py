@@ -121,6 +121,10 @@ def test_two_overlapping_bodies_are_united(tmp_path):
     ({"medial_axis": {"method": "cocone"}}, "medial_axis.method must be"),
     ({"seed": -1}, "seed must be a non-negative int"),
     ({"bogus": {}}, "unknown section 'bogus'"),
+    ({"simulate": {"mu": -0.5}}, "simulate.mu must be >= 0"),
+    ({"simulate": {"cone_edges": 2}}, "simulate.cone_edges must be >= 3"),
+    ({"simulate": {"baseline_trials": -2}}, "simulate.baseline_trials must be -1, 0 or a count"),
+    ({"candidates": {"hands": ["shadow"]}}, "candidates.hands must list built-in hands"),
 ])
 def test_broken_params_give_one_line(extra, expected, tmp_path):
     result, out = run_sample(tmp_path, {"source": "primitive:box", "extents": [0.1, 0.06, 0.02]}, extra)
