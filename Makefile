@@ -31,7 +31,8 @@ $(VENV)/.synced: $(UV) pyproject.toml uv.lock
 
 run: setup
 	dvc repro
-	@echo "artefacts: data/<object>/{surface,medial_axis,spheres,sphere_grid,symmetry}.npz and candidates.parquet (see README)"
+	@echo "artefacts: data/<object>/{surface,medial_axis,spheres,sphere_grid,symmetry}.npz, candidates.parquet,"
+	@echo "           trials.parquet and contacts.parquet (see README; the report stage comes next)"
 
 test: setup
 	python -m pytest -q
