@@ -248,3 +248,15 @@ def test_a_toml_hand_spec_reads_like_the_yaml_one(tmp_path):
     (tmp_path / "broken.toml").write_text("name = \n")
     with pytest.raises(BadParamsError, match="not valid TOML"):
         load_hand(tmp_path / "broken.toml")
+
+
+def test_an_object_without_candidates_gives_empty_tables(tmp_path):
+    from pipeline.artefacts import read_table, write_table
+    from pipeline.candidates import COLUMNS
+
+    empty = pd.DataFrame({column: [] for column in COLUMNS})
+    trials, contacts = simulate(cube(), empty, [HANDS["barrett"]], spheres_per_object=5, baseline_trials=-1)
+    assert len(trials) == 0 and len(contacts) == 0 and {"outcome", "epsilon", "planner"} <= set(trials.columns)
+    assert summarise(trials)["trials"] == 0 and summarise(trials)["force_closure_rate"] == 0.0
+    write_table(tmp_path / "trials.parquet", trials)
+    assert len(read_table(tmp_path / "trials.parquet")) == 0
