@@ -27,7 +27,7 @@ ARTEFACT_NAMES = {"sample": "surface.npz", "medial_axis": "medial_axis.npz", "ma
 
 
 def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, hands=None, simulate=False,
-              workers=None, progress=None):
+              workers=None, progress=None, trial_progress=None):
     """Compute every stage's artefact for one object, in memory.
 
     Parameters
@@ -45,6 +45,8 @@ def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, hand
         Overrides ``params.simulate.workers``.
     progress : callable(str), optional
         Called with a one-line message after each stage.
+    trial_progress : callable(int, int), optional
+        Called with the trials just finished and the total (see :func:`pipeline.trials.simulate`).
 
     Returns
     -------
@@ -79,7 +81,7 @@ def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, hand
             artefacts["sample"], artefacts["candidates"], hand_specs, spheres_per_object=config.spheres_per_object,
             baseline_trials=config.baseline_trials, seed=seed,
             workers=default_workers(config.workers if workers is None else workers),
-            settings=config.world_settings()))
+            settings=config.world_settings(), progress=trial_progress))
         artefacts["trials"], artefacts["contacts"] = artefacts.pop("simulate")
     return artefacts, timings
 
