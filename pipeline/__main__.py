@@ -4,7 +4,7 @@ import argparse
 import json
 import sys
 
-from .cli import PARAMS_FILE, one_line_errors
+from .cli import PARAMS_FILE, one_line_errors, progress_bar
 from .params import Params, load_params
 
 
@@ -76,24 +76,11 @@ def _plan(args):
                                                ("baseline_trials", args.baseline)) if value is not None}
     if overrides:
         params = dataclasses.replace(params, simulate=dataclasses.replace(params.simulate, **overrides))
-    from tqdm import tqdm
-
-    bars = []  # made on the first finished trial, so an early error stays a single line
-
-    def trial_progress(done, total):
-        if not bars:
-            bars.append(tqdm(desc="simulate", unit="trial", total=total, file=sys.stderr, mininterval=1.0,
-                             leave=False))
-        bars[0].update(done)
-
-    try:
+    with progress_bar("simulate") as trial_progress:
         artefacts, timings = run_chain(args.mesh, params, scale=args.scale, seed=seed, hands=args.hand,
                                        simulate=not args.no_simulate, workers=args.workers,
                                        progress=lambda line: print(line, file=sys.stderr),
                                        trial_progress=trial_progress)
-    finally:
-        for bar in bars:
-            bar.close()
     result = summary(artefacts, timings, source=args.mesh, scale=args.scale, seed=seed)
     write_plan(args.out, artefacts, result)
     brief = {**result["counts"], "classes": result["classes"], "candidates": result["candidates"]}

@@ -1,6 +1,7 @@
 """Shared plumbing of the command line and the DVC stages: params, errors, exit codes."""
 
 import argparse
+import contextlib
 import functools
 import sys
 
@@ -38,3 +39,23 @@ def stage_args(description, *names, argv=None):
     for name in names:
         parser.add_argument(name)
     return parser.parse_args(argv)
+
+
+@contextlib.contextmanager
+def progress_bar(description, unit="trial"):
+    """A ``progress(done, total)`` callable drawing a tqdm bar on stderr. The bar appears on the
+    first call, so a command that fails before any work still prints a single error line."""
+    from tqdm import tqdm
+
+    bars = []
+
+    def progress(done, total):
+        if not bars:
+            bars.append(tqdm(desc=description, unit=unit, total=total, file=sys.stderr, mininterval=1.0))
+        bars[0].update(done)
+
+    try:
+        yield progress
+    finally:
+        for bar in bars:
+            bar.close()

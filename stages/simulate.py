@@ -2,14 +2,12 @@
 
 import sys
 
-from pipeline.cli import one_line_errors, params, stage_args
+from pipeline.cli import one_line_errors, params, progress_bar, stage_args
 
 
 @one_line_errors
 def main(argv=None):
     # imported here: trial workers are spawned and re-import this module, and need none of it
-    from tqdm import tqdm
-
     from pipeline.artefacts import SurfaceSamples, read_table, write_table
     from pipeline.hands import get_hand
     from pipeline.trials import default_workers, simulate, summary
@@ -18,11 +16,7 @@ def main(argv=None):
     config = params()
     hands = [get_hand(name) for name in config.candidates.hands]
     surface, candidates = SurfaceSamples.load(args.surface), read_table(args.candidates)
-    with tqdm(desc=f"simulate {args.trials}", unit="trial", file=sys.stderr, mininterval=1.0) as bar:
-        def progress(done, total):
-            bar.total = total
-            bar.update(done)
-
+    with progress_bar(f"simulate {args.trials}") as progress:
         trials, contacts = simulate(surface, candidates, hands, spheres_per_object=config.simulate.spheres_per_object,
                                     baseline_trials=config.simulate.baseline_trials, seed=config.seed,
                                     workers=default_workers(config.simulate.workers),
