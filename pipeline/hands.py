@@ -187,11 +187,17 @@ def _parallel_jaw():
 
 
 HANDS = {hand.name: hand for hand in (_armar3(), _barrett(), _parallel_jaw())}
+SPEC_SUFFIXES = (".yaml", ".yml", ".toml")
+
+
+def is_spec_path(name):
+    """Whether ``name`` names a hand spec file rather than a built-in hand."""
+    return str(name).endswith(SPEC_SUFFIXES)
 
 
 def get_hand(name):
     """A built-in hand by name, or a user hand from a ``.yaml``/``.yml``/``.toml`` spec path."""
-    if str(name).endswith((".yaml", ".yml", ".toml")):
+    if is_spec_path(name):
         return load_hand(name)
     if name not in HANDS:
         raise BadParamsError(f"unknown hand {name!r} (built-in: {', '.join(HANDS)}; or a spec .yaml/.toml)")

@@ -148,10 +148,10 @@ class CandidatesParams:
     """Also emit every candidate with P_o = -P_o (Simox default)."""
 
     def __post_init__(self):
-        from .hands import HANDS
+        from .hands import HANDS, is_spec_path
 
         _require(isinstance(self.hands, list) and self.hands
-                 and all(h in HANDS or str(h).endswith((".yaml", ".yml", ".toml")) for h in self.hands),
+                 and all(h in HANDS or is_spec_path(h) for h in self.hands),
                  "candidates", "hands", f"must list built-in hands ({', '.join(HANDS)}) or hand spec files, "
                  f"got {self.hands!r}")
         _require(self.approach_directions >= 1, "candidates", "approach_directions", "must be >= 1")

@@ -436,10 +436,6 @@ def _matrices(quaternions):
                             2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]).reshape(-1, 3, 3)
 
 
-def _rotate(quaternion, points):
-    return points @ _matrices(quaternion[None])[0].T
-
-
 def _patch_ends(points, links, distances, min_length=0.002):
     """Two contacts per touching link: its closest point and the touching point farthest from it.
 

@@ -1,7 +1,5 @@
 """Stage ``simulate``: python -m stages.simulate SURFACE.npz CANDIDATES.parquet TRIALS.parquet CONTACTS.parquet"""
 
-import sys
-
 from pipeline.cli import one_line_errors, params, progress_bar, stage_args
 
 
