@@ -31,8 +31,8 @@ $(VENV)/.synced: $(UV) pyproject.toml uv.lock
 
 run: setup
 	dvc repro
-	@echo "artefacts: data/<object>/{surface,medial_axis,spheres,sphere_grid,symmetry}.npz, candidates.parquet,"
-	@echo "           trials.parquet and contacts.parquet (see README; the report stage comes next)"
+	@echo "report: $(CURDIR)/report/report.md (figures in report/figures/, every trial in report/trials.parquet)"
+	@echo "        dvc metrics show | dvc plots show (writes dvc_plots/index.html) | artefacts in data/<object>/<scale>/"
 
 test: setup
 	python -m pytest -q

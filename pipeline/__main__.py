@@ -1,4 +1,4 @@
-"""Command line: ``python -m pipeline {plan,bench,hands} ...`` (``--help`` on each)."""
+"""Command line: ``python -m pipeline {plan,bench,hands,objects} ...`` (``--help`` on each)."""
 
 import argparse
 import json
@@ -38,7 +38,18 @@ def main(argv=None):
     hands.add_argument("--render", metavar="DIR", help="write DIR/<hand>.png, open and closed on an object")
     hands.add_argument("--export", nargs=2, metavar=("HAND", "DIR"),
                        help="write DIR/HAND.urdf and DIR/HAND.yaml (a spec --hand accepts)")
+    objects = commands.add_parser("objects", help="params.yaml objects entries for every mesh in a folder")
+    objects.add_argument("folder", help="folder of OBJ/STL/PLY/OFF/GLB meshes")
+    objects.add_argument("--scale", type=float, default=None, help="factor for every mesh (0.001 for mm)")
+    objects.add_argument("--size", type=float, default=None,
+                         help="metres of each mesh's bounding-box diagonal, for unitless meshes")
+    objects.add_argument("--only", default=None, help="comma-separated file stems to keep (e.g. 1,41,81)")
+    objects.add_argument("--prefix", default="", help="put before each file stem to name the object")
+    objects.add_argument("--write", metavar="PARAMS", default=None,
+                         help="replace the objects section of this params file (else print the entries)")
     args = parser.parse_args(argv)
+    if args.command == "objects":
+        return _objects(args)
     if args.command == "plan":
         return _plan(args)
     if args.command == "hands":
@@ -61,6 +72,22 @@ def _hands(args, parser):
 
         for path in render_builtin_hands(args.render):
             print(f"wrote {path}")
+
+
+def _objects(args):
+    from pathlib import Path
+
+    from .artefacts import atomic_write
+    from .catalogue import entry_lines, folder_entries, replace_objects
+
+    entries = folder_entries(args.folder, prefix=args.prefix, scale=args.scale, size=args.size,
+                             only=args.only.split(",") if args.only else None)
+    if not args.write:
+        print("\n".join(["objects:"] + [f"  {line}" for line in entry_lines(entries)]))
+        return
+    text = replace_objects(Path(args.write).read_text(), entries)
+    atomic_write(args.write, lambda stream: stream.write(text.encode()))
+    print(f"wrote {len(entries)} objects into {args.write}: run `dvc repro`")
 
 
 def _plan(args):

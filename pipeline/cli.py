@@ -3,7 +3,10 @@
 import argparse
 import contextlib
 import functools
+import json
+import os
 import sys
+import time
 
 from .errors import PipelineError
 from .params import load_params
@@ -34,11 +37,32 @@ def params(path=PARAMS_FILE):
 
 
 def stage_args(description, *names, argv=None):
-    """Parse a stage's positional arguments (input and output paths, from dvc.yaml's cmd)."""
+    """Parse a stage's positional arguments (input and output paths, from dvc.yaml's cmd) and
+    its optional ``--timing PATH`` (see :func:`timed`)."""
     parser = argparse.ArgumentParser(description=description)
     for name in names:
         parser.add_argument(name)
+    parser.add_argument("--timing", help="write the stage's wall time here (JSON) when it succeeds")
     return parser.parse_args(argv)
+
+
+@contextlib.contextmanager
+def timed(path, stage):
+    """Time the block; on success write ``{"stage", "seconds", "process_seconds"}`` to ``path`` (if
+    given), atomically: the block's wall time, and the process's since it started (imports
+    included). The report's per-stage timings come from these files."""
+    from .artefacts import atomic_write
+
+    start = time.perf_counter()
+    yield
+    if path:
+        seconds = time.perf_counter() - start
+        try:  # /proc/self's timestamp is the process's start
+            process = max(time.time() - os.stat("/proc/self").st_ctime, seconds)
+        except OSError:
+            process = seconds
+        record = {"stage": stage, "seconds": round(seconds, 3), "process_seconds": round(process, 3)}
+        atomic_write(path, lambda stream: stream.write(json.dumps(record).encode()))
 
 
 @contextlib.contextmanager

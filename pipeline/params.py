@@ -199,11 +199,32 @@ class SimulateParams:
 
 
 @dataclass(frozen=True)
+class ReportParams:
+    """The report (stage ``report``): tables, metrics, plots and figures."""
+
+    figure_objects: list = field(default_factory=lambda: ["mug", "kettle", "giraffe"])
+    """Objects drawn as figures (medial spheres, candidates, example grasps), at every scale."""
+    example_grasps: int = 3
+    """Force-closure grasps with the highest epsilon drawn per object, scale and hand."""
+    epsilon_bins: int = 20
+    """Bins of the epsilon histograms (``report/plots/epsilon.csv``)."""
+
+    def __post_init__(self):
+        _require(all(isinstance(name, str) for name in self.figure_objects), "report", "figure_objects",
+                 "must list object names")
+        _require(self.example_grasps >= 0, "report", "example_grasps", "must be >= 0")
+        _require(self.epsilon_bins >= 2, "report", "epsilon_bins", "must be >= 2")
+
+
+@dataclass(frozen=True)
 class Params:
     """Every section of ``params.yaml``."""
 
     seed: int = 0
     objects: dict = field(default_factory=dict)
+    scales: tuple = (1.0,)
+    """Sizes each object runs at, as factors of its own (Table I: 1.0 and 0.5); kept as written,
+    since ``data/<object>/<scale>/`` is named by DVC from the same text."""
     sample: SampleParams = field(default_factory=SampleParams)
     medial_axis: MedialAxisParams = field(default_factory=MedialAxisParams)
     mat: MatParams = field(default_factory=MatParams)
@@ -211,6 +232,7 @@ class Params:
     classify: ClassifyParams = field(default_factory=ClassifyParams)
     candidates: CandidatesParams = field(default_factory=CandidatesParams)
     simulate: SimulateParams = field(default_factory=SimulateParams)
+    report: ReportParams = field(default_factory=ReportParams)
 
 
 SECTIONS = {f.name: f.type for f in dataclasses.fields(Params) if dataclasses.is_dataclass(f.type)}
@@ -273,6 +295,11 @@ def load_params(path="params.yaml"):
     objects = raw.get("objects", {}) or {}
     if not isinstance(objects, dict):
         raise BadParamsError(f"{path}: objects must be a mapping name -> spec")
+    scales = raw.get("scales", [1.0])
+    if not (isinstance(scales, list) and scales and all(
+            isinstance(scale, (int, float)) and not isinstance(scale, bool) and math.isfinite(scale) and scale > 0
+            for scale in scales) and len(set(scales)) == len(scales)):
+        raise BadParamsError(f"{path}: scales must be a list of distinct positive numbers, got {scales!r}")
     sections = {name: section_from_mapping(cls, raw.get(name), section=name, source=str(path))
                 for name, cls in SECTIONS.items()}
-    return Params(seed=seed, objects=objects, **sections)
+    return Params(seed=seed, objects=objects, scales=tuple(scales), **sections)

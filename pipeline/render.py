@@ -5,6 +5,9 @@ import numpy as np
 
 from .bullet import load_hand, pybullet
 
+#: view direction of ``frame="scene"`` pictures, weights of the hand's wrap, side and approach axes
+SCENE_VIEW = (0.8, 0.35, -0.25)
+
 
 def closed_joints(hand):
     """{joint: value} of the hand closed on nothing: every finger driven through its coupling
@@ -18,11 +21,16 @@ def closed_joints(hand):
     return joints
 
 
-def render_hand(hand, joints, *, base=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), surface=None, size=(480, 480)):
+def render_hand(hand, joints, *, base=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), surface=None, size=(480, 480),
+                frame="hand"):
     """(height, width, 3) uint8 image of ``hand`` in the joint state ``joints`` (name -> value)
     at the base pose ``base`` (position, quaternion x y z w), with the object mesh of
-    ``surface`` (SurfaceSamples) if given; a three-quarter view framed on the open hand, with
-    the approach axis up."""
+    ``surface`` (SurfaceSamples) if given. ``frame="hand"``: a three-quarter view framed on
+    the open hand, with the approach axis up. ``frame="scene"``: a view mostly along the wrap
+    axis (:data:`SCENE_VIEW`, fingers in profile), object frame z up, framed on the posed hand
+    and the part of the mesh near it."""
+    if frame not in ("hand", "scene"):
+        raise ValueError(f"frame must be 'hand' or 'scene', got {frame!r}")
     client = pybullet.connect(pybullet.DIRECT)
     try:
         body = load_hand(hand, client)
@@ -43,6 +51,19 @@ def render_hand(hand, joints, *, base=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), s
         pybullet.resetBasePositionAndOrientation(body, base[0], base[1], physicsClientId=client)
         for joint, value in joints.items():
             pybullet.resetJointState(body, names[joint], value, physicsClientId=client)
+        if frame == "scene":  # fingers in profile, object frame z up, framed on the hand and the mesh near it
+            boxes = np.array([pybullet.getAABB(body, index, physicsClientId=client) for index in [-1, *names.values()]])
+            low, high = boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)
+            if surface is not None and len(surface.vertices):
+                margin = 0.5 * np.linalg.norm(high - low)  # a large object is shown around the hand only
+                low = np.minimum(low, np.maximum(surface.vertices.min(axis=0), low - margin))
+                high = np.maximum(high, np.minimum(surface.vertices.max(axis=0), high + margin))
+            direction = rotation @ (SCENE_VIEW[0] * np.asarray(hand.wrap) + SCENE_VIEW[1] * side
+                                    + SCENE_VIEW[2] * np.asarray(hand.approach))
+            direction /= np.linalg.norm(direction)
+            up = np.array([0.0, 0.0, 1.0]) if abs(direction[2]) < 0.9 else rotation @ np.asarray(hand.approach)
+            target = (low + high) / 2
+            eye = target + 1.4 * np.linalg.norm(high - low) * direction
         if surface is not None:
             shape = pybullet.createVisualShape(pybullet.GEOM_MESH, vertices=surface.vertices.tolist(),
                                                indices=surface.faces.ravel().tolist(),

@@ -148,9 +148,10 @@ def simulate(surface, candidates, hands, *, spheres_per_object=200, baseline_tri
     """
     jobs = []
     for number, hand in enumerate(hands):
-        mat = select_candidates(candidates, hand.name, spheres_per_object, seed + number)
+        # the same seeds for every hand: a hand's trials do not depend on the other hands run with it
+        mat = select_candidates(candidates, hand.name, spheres_per_object, seed)
         count = len(mat) if baseline_trials < 0 else baseline_trials
-        jobs += [("mat", number, mat), ("baseline", number, baseline_candidates(surface, hand, count, seed + 1000 + number))]
+        jobs += [("mat", number, mat), ("baseline", number, baseline_candidates(surface, hand, count, seed + 1000))]
     results = run_trials(surface, hands, [(number, table) for _, number, table in jobs], settings or {},
                          workers=workers, progress=progress)
     return _tables([(planner, hands[number], table, result) for (planner, number, table), result in zip(jobs, results)])

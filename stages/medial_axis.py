@@ -3,15 +3,16 @@
 import dataclasses
 
 from pipeline.artefacts import SurfaceSamples
-from pipeline.cli import one_line_errors, params, stage_args
+from pipeline.cli import one_line_errors, params, stage_args, timed
 from pipeline.medial_axis import medial_axis
 
 
 @one_line_errors
 def main(argv=None):
     args = stage_args(__doc__, "surface", "out", argv=argv)
-    axis = medial_axis(SurfaceSamples.load(args.surface), **dataclasses.asdict(params().medial_axis))
-    axis.save(args.out)
+    with timed(args.timing, "medial_axis"):
+        axis = medial_axis(SurfaceSamples.load(args.surface), **dataclasses.asdict(params().medial_axis))
+        axis.save(args.out)
     print(f"medial_axis {args.out}: {len(axis.radii)} balls ({axis.method})")
 
 

@@ -1,10 +1,13 @@
-"""Stage ``sample``: python -m stages.sample OBJECT OUT.npz"""
+"""Stage ``sample``: python -m stages.sample OBJECT SCALE OUT.npz [--timing T.json]
+
+OBJECT names an entry of params.yaml ``objects``; SCALE (one of ``scales``) multiplies its size.
+"""
 
 import dataclasses
 
 import numpy as np
 
-from pipeline.cli import one_line_errors, params, stage_args
+from pipeline.cli import one_line_errors, params, stage_args, timed
 from pipeline.errors import BadParamsError
 from pipeline.objects import parse_spec, source_key
 from pipeline.sampling import sample_object
@@ -12,15 +15,18 @@ from pipeline.sampling import sample_object
 
 @one_line_errors
 def main(argv=None):
-    args = stage_args(__doc__, "object", "out", argv=argv)
+    args = stage_args(__doc__, "object", "scale", "out", argv=argv)
     config = params()
     if args.object not in config.objects:
         raise BadParamsError(f"params.yaml: no object named {args.object!r} under 'objects'")
-    source, scale, shape = parse_spec(args.object, config.objects[args.object])
-    surface = sample_object(source, scale=scale, shape=shape, rng=np.random.default_rng(config.seed),
-                            source_key=source_key(source, shape), **dataclasses.asdict(config.sample))
-    surface.save(args.out)
-    print(f"sample {args.object}: {len(surface.points)} samples, spacing {surface.spacing * 1e3:.3f} mm")
+    with timed(args.timing, "sample"):
+        source, scale, shape = parse_spec(args.object, config.objects[args.object])
+        surface = sample_object(source, scale=scale * float(args.scale), shape=shape,
+                                rng=np.random.default_rng(config.seed), source_key=source_key(source, shape),
+                                **dataclasses.asdict(config.sample))
+        surface.save(args.out)
+    print(f"sample {args.object} x{args.scale}: {len(surface.points)} samples, "
+          f"spacing {surface.spacing * 1e3:.3f} mm")
 
 
 if __name__ == "__main__":

@@ -1,6 +1,7 @@
-"""Stage ``simulate``: python -m stages.simulate SURFACE.npz CANDIDATES.parquet TRIALS.parquet CONTACTS.parquet"""
+"""Stage ``simulate``: python -m stages.simulate SURFACE.npz CANDIDATES.parquet HAND TRIALS.parquet CONTACTS.parquet
+[--timing T.json]"""
 
-from pipeline.cli import one_line_errors, params, progress_bar, stage_args
+from pipeline.cli import one_line_errors, params, progress_bar, stage_args, timed
 
 
 @one_line_errors
@@ -10,17 +11,19 @@ def main(argv=None):
     from pipeline.hands import get_hand
     from pipeline.trials import default_workers, simulate, summary
 
-    args = stage_args(__doc__, "surface", "candidates", "trials", "contacts", argv=argv)
+    args = stage_args(__doc__, "surface", "candidates", "hand", "trials", "contacts", argv=argv)
     config = params()
-    hands = [get_hand(name) for name in config.candidates.hands]
-    surface, candidates = SurfaceSamples.load(args.surface), read_table(args.candidates)
-    with progress_bar(f"simulate {args.trials}") as progress:
-        trials, contacts = simulate(surface, candidates, hands, spheres_per_object=config.simulate.spheres_per_object,
-                                    baseline_trials=config.simulate.baseline_trials, seed=config.seed,
-                                    workers=default_workers(config.simulate.workers),
-                                    settings=config.simulate.world_settings(), progress=progress)
-    write_table(args.contacts, contacts)
-    write_table(args.trials, trials)
+    with timed(args.timing, "simulate"):
+        hand = get_hand(args.hand)
+        surface, candidates = SurfaceSamples.load(args.surface), read_table(args.candidates)
+        with progress_bar(f"simulate {args.trials}") as progress:
+            trials, contacts = simulate(surface, candidates, [hand],
+                                        spheres_per_object=config.simulate.spheres_per_object,
+                                        baseline_trials=config.simulate.baseline_trials, seed=config.seed,
+                                        workers=default_workers(config.simulate.workers),
+                                        settings=config.simulate.world_settings(), progress=progress)
+        write_table(args.contacts, contacts)
+        write_table(args.trials, trials)
     result = summary(trials)
     print(f"simulate {args.trials}: {result['trials']} MAT trials, force closure "
           f"{result['force_closure_rate']:.1%} (baseline {result['baseline']['force_closure_rate']:.1%} "

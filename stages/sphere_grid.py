@@ -4,14 +4,15 @@ import dataclasses
 
 from pipeline import sphere_grid
 from pipeline.artefacts import MedialSpheres
-from pipeline.cli import one_line_errors, params, stage_args
+from pipeline.cli import one_line_errors, params, stage_args, timed
 
 
 @one_line_errors
 def main(argv=None):
     args = stage_args(__doc__, "spheres", "out", argv=argv)
-    grid = sphere_grid.build(MedialSpheres.load(args.spheres), **dataclasses.asdict(params().sphere_grid))
-    grid.save(args.out)
+    with timed(args.timing, "sphere_grid"):
+        grid = sphere_grid.build(MedialSpheres.load(args.spheres), **dataclasses.asdict(params().sphere_grid))
+        grid.save(args.out)
     print(f"sphere_grid {args.out}: {len(grid)} spheres in {int(grid.dims.prod())} cells")
 
 

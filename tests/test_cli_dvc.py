@@ -65,8 +65,8 @@ def test_plan_on_bad_mesh_is_one_line(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
-@pytest.mark.slow
-def test_dvc_repro_caches_and_reruns_only_what_changed(tmp_path):
+def tiny_project(tmp_path):
+    """A copy of the project with the tiny config: 2 objects x 2 scales x 2 hands, 20 spheres."""
     for name in ("pipeline", "stages", "dvc.yaml"):
         source = REPO / name
         if source.is_dir():
@@ -74,44 +74,95 @@ def test_dvc_repro_caches_and_reruns_only_what_changed(tmp_path):
         else:
             shutil.copy(source, tmp_path / name)
     params = yaml.safe_load((REPO / "params.yaml").read_text())
-    params["objects"] = {"box": params["objects"]["box"], "capsule": params["objects"]["capsule"]}
+    params["objects"] = {"box": {"source": "primitive:box"}, "capsule": {"source": "primitive:capsule"}}
+    params["scales"] = [1.0, 0.5]
     params["sample"]["count"] = 2000
-    params["simulate"].update(spheres_per_object=2, baseline_trials=3, workers=1)
+    params["simulate"].update(spheres_per_object=20, workers=1)
+    params["report"].update(figure_objects=["capsule"], example_grasps=1)
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
-    dvc = [sys.executable, "-m", "dvc"]
+    (tmp_path / ".gitignore").write_text("__pycache__/\n")
     assert run(["git", "init", "-q"], tmp_path).returncode == 0
-    assert run(dvc + ["init", "-q"], tmp_path).returncode == 0
+    assert run([sys.executable, "-m", "dvc", "init", "-q"], tmp_path).returncode == 0
+    return params
+
+
+def ran_stages(result):
+    return {line.split("'")[1] for line in result.stdout.splitlines() if line.startswith("Running stage")}
+
+
+@pytest.mark.slow
+def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
+    tiny_project(tmp_path)
+    dvc = [sys.executable, "-m", "dvc"]
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t"]
     first = run(dvc + ["repro"], tmp_path)
     assert first.returncode == 0, first.stderr + first.stdout
-    assert (tmp_path / "data" / "capsule" / "sphere_grid.npz").exists()
-    second = run(dvc + ["repro"], tmp_path)
-    assert second.returncode == 0 and "Running stage" not in second.stdout
-    before = {name: (tmp_path / "data" / name / "candidates.parquet").read_bytes() for name in ("box", "capsule")}
-    params["mat"]["tau"] = 0.02
-    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
-    third = run(dvc + ["repro"], tmp_path)
-    assert third.returncode == 0, third.stderr
-    ran = {line.split("'")[1] for line in third.stdout.splitlines() if line.startswith("Running stage")}
-    assert ran - {"simulate@box", "simulate@capsule"} == {
-        f"{stage}@{name}" for stage in ("mat", "sphere_grid", "classify", "candidates") for name in ("box", "capsule")}
-    for name in ("box", "capsule"):  # trials rerun only where the candidates changed
-        changed = (tmp_path / "data" / name / "candidates.parquet").read_bytes() != before[name]
-        assert (f"simulate@{name}" in ran) == changed
-    assert (tmp_path / "data" / "box" / "trials.parquet").exists()
+    runs = [(name, scale, hand) for name in ("box", "capsule") for scale in (1.0, 0.5) for hand in ("armar3", "barrett")]
+    assert len(ran_stages(first)) == 4 * 5 + 8 * 2 + 1
 
-    # push to a local remote, then a fresh clone pulls back every artefact, byte for byte
-    assert run(dvc + ["remote", "add", "-d", "store", str(tmp_path.parent / "store")], tmp_path).returncode == 0
-    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t"]
+    # the report: a row per object x scale x hand, every trial, metrics, plots, figures
+    out = tmp_path / "report"
+    text = (out / "report.md").read_text()
+    for name, scale, hand in runs:
+        assert sum(line.startswith(f"| {name} | {scale:g} | {hand} |") for line in text.splitlines()) == 1
+    assert "| capsule |" in text.split("## Table I")[1].split("##")[0]
+    trials = pd.read_parquet(out / "trials.parquet")
+    per_run = {run_key: pd.read_parquet(tmp_path / "data" / run_key[0] / str(run_key[1]) / run_key[2] / "trials.parquet")
+               for run_key in runs}
+    assert len(trials) == sum(len(frame) for frame in per_run.values())
+    for (name, scale, hand), frame in per_run.items():
+        mat = frame[frame.planner == "mat"]
+        assert mat.sphere_index.nunique() <= 20 and (frame.planner == "baseline").sum() == len(mat)
+        rows = trials[(trials.object == name) & (trials.scale == scale) & (trials.hand == hand)]
+        assert rows.outcome.astype(str).tolist() == frame.outcome.astype(str).tolist()
+    metrics = json.loads(run(dvc + ["metrics", "show", "--json"], tmp_path).stdout)
+    shown = next(iter(metrics.values()))["data"]["report/metrics.json"]["data"]
+    mat = trials[trials.planner == "mat"]
+    assert shown["mat"]["force_closure_rate"] == round((mat.outcome == "force_closure").mean(), 4)
+    assert set(shown["per_hand"]) == {"armar3", "barrett"} and shown["runs_compared"] <= 8
+    plots = json.loads(run(dvc + ["plots", "show", "--json"], tmp_path).stdout)
+    assert not plots.get("errors") and {"force_closure_pct", "epsilon_histogram"} <= set(plots["data"])
+    bars = plots["data"]["force_closure_pct"][0]["content"]["data"]["values"]
+    assert len(bars) == 2 * 8 and {bar["filename"] for bar in bars} == {"force_closure_mat.csv",
+                                                                       "force_closure_baseline.csv"}
+    assert (out / "figures" / "capsule-1.0-spheres.png").stat().st_size > 10_000
+    timings = pd.read_json(tmp_path / "data" / "box" / "1.0" / "armar3" / "timing" / "simulate.json", typ="series")
+    assert timings["stage"] == "simulate" and timings["process_seconds"] > timings["seconds"] > 0
+    assert "| simulate | 8 |" in text
+
+    # nothing changed: nothing runs
+    second = run(dvc + ["repro"], tmp_path)
+    assert second.returncode == 0 and not ran_stages(second)
+
+    # a parameter sweep with dvc exp: only what the parameter feeds reruns
     assert run(git + ["add", "-A"], tmp_path).returncode == 0
     assert run(git + ["commit", "-qm", "run"], tmp_path).returncode == 0
+    before = {key: (tmp_path / "data" / key[0] / str(key[1]) / key[2] / "candidates.parquet").read_bytes() for key in runs}
+    swept = run(dvc + ["exp", "run", "-S", "classify.min_object_angle_deg=150"], tmp_path)
+    assert swept.returncode == 0, swept.stderr + swept.stdout
+    ran = ran_stages(swept)
+    assert {stage.split("@")[0] for stage in ran} <= {"classify", "candidates", "simulate", "report"}
+    assert {f"classify@{name}-{scale}" for name in ("box", "capsule") for scale in (1.0, 0.5)} <= ran
+    for key in runs:  # trials rerun only where the candidates changed
+        changed = (tmp_path / "data" / key[0] / str(key[1]) / key[2] / "candidates.parquet").read_bytes() != before[key]
+        assert (f"simulate@{key[0]}-{key[1]}-{key[2]}" in ran) == changed
+    shown = json.loads(run(dvc + ["exp", "show", "--json"], tmp_path).stdout)
+    assert "150" in json.dumps(shown)
+
+    # push to a local remote, then a fresh clone pulls back every artefact, byte for byte
+    assert run(git + ["checkout", "--", "."], tmp_path).returncode == 0
+    assert run(dvc + ["checkout", "-q"], tmp_path).returncode == 0
+    assert run(dvc + ["remote", "add", "-d", "store", str(tmp_path.parent / "store")], tmp_path).returncode == 0
+    assert run(git + ["commit", "-qam", "remote"], tmp_path).returncode == 0
     pushed = run(dvc + ["push"], tmp_path)
     assert pushed.returncode == 0, pushed.stderr
     clone = tmp_path.parent / "clone"
     assert run(["git", "clone", "-q", str(tmp_path), str(clone)], tmp_path.parent).returncode == 0
     pulled = run(dvc + ["pull"], clone)
     assert pulled.returncode == 0, pulled.stderr
-    outputs = sorted(path.relative_to(tmp_path) for path in (tmp_path / "data").rglob("*.*") if path.name[0] != ".")
-    assert len(outputs) == 16
+    outputs = sorted(path.relative_to(tmp_path) for folder in ("data", "report")
+                     for path in (tmp_path / folder).rglob("*.*") if path.name[0] != ".")
+    assert len(outputs) == 4 * 10 + 8 * 5 + 6 + len(list((out / "figures").iterdir()))
     for relative in outputs:
         assert (clone / relative).read_bytes() == (tmp_path / relative).read_bytes()
 

@@ -1,0 +1,207 @@
+"""The report: the paper's Table I from the trials of every object, scale and hand, beside the
+baseline's, plus the metrics and plot tables DVC shows (``dvc metrics show``, ``dvc plots show``).
+
+Everything here takes the combined trials table (:func:`combine`) and returns tables, dicts or
+Markdown text; the ``report`` stage does the reading and writing.
+"""
+
+import numpy as np
+import pandas as pd
+
+from .simulation import OUTCOMES
+
+HAND_TITLES = {"armar3": "ARMAR-III", "barrett": "Barrett", "parallel_jaw": "parallel jaw"}
+KEYS = ["object", "scale", "hand"]
+
+
+def combine(tables):
+    """One trials table from ``{(object, scale, hand): trials}``, with ``object``, ``scale`` (float)
+    and ``hand`` first; the per-run tables' columns follow (see :mod:`pipeline.trials`)."""
+    frames = []
+    for (name, scale, hand), trials in tables.items():
+        frame = trials.drop(columns=["hand"], errors="ignore").copy()
+        frame.insert(0, "hand", hand)
+        frame.insert(0, "scale", float(scale))
+        frame.insert(0, "object", name)
+        frames.append(frame)
+    if not frames:
+        return pd.DataFrame(columns=KEYS + ["planner", "outcome", "epsilon"])
+    combined = pd.concat(frames, ignore_index=True)
+    combined["outcome"] = pd.Categorical(combined.outcome.astype(str), categories=OUTCOMES)
+    return combined
+
+
+def results(trials, runs):
+    """One row per run (object, scale, hand) and planner side by side: trials, force-closure
+    rate (%), mean epsilon over the force-closure trials, and the MAT outcome counts.
+
+    Parameters
+    ----------
+    trials : pandas.DataFrame
+        From :func:`combine`.
+    runs : list of (object, scale, hand)
+        Every run the params ask for, in the report's order; a run without trials (an object
+        too big for the hand has no candidates) gets 0 trials and NaN rates.
+    """
+    index = pd.MultiIndex.from_tuples([(name, float(scale), hand) for name, scale, hand in runs], names=KEYS)
+    closed = trials.outcome == "force_closure"
+    grouped = trials.assign(closed=closed, closed_epsilon=trials.epsilon.where(closed)).groupby(
+        KEYS + ["planner"], observed=True)
+    table = pd.DataFrame({
+        "trials": grouped.size(),
+        "force_closure_pct": 100.0 * grouped.closed.mean(),
+        "mean_epsilon": grouped.closed_epsilon.mean(),
+    }).unstack("planner")
+    frame = pd.DataFrame(index=index)
+    for planner in ("mat", "baseline"):
+        for column in ("trials", "force_closure_pct", "mean_epsilon"):
+            values = table[(column, planner)] if (column, planner) in table.columns else pd.Series(dtype=float)
+            frame[f"{planner}_{column}"] = values.reindex(index)
+    frame["mat_trials"] = frame.mat_trials.fillna(0).astype(int)
+    frame["baseline_trials"] = frame.baseline_trials.fillna(0).astype(int)
+    mat = trials[trials.planner == "mat"]
+    outcomes = mat.groupby(KEYS, observed=True).outcome.value_counts().unstack(fill_value=0)
+    for outcome in OUTCOMES:
+        counts = outcomes[outcome] if outcome in outcomes.columns else pd.Series(dtype=int)
+        frame[outcome] = counts.reindex(index).fillna(0).astype(int)
+    return frame.reset_index()
+
+
+def metrics(trials):
+    """Headline numbers for ``dvc metrics show``: force-closure rate and mean epsilon of each
+    planner overall, per hand and per scale, and in how many runs MAT beats the baseline."""
+    def rates(frame):
+        closed = frame.outcome == "force_closure"
+        return {"force_closure_rate": round(float(closed.mean()), 4) if len(frame) else None,
+                "trials": int(len(frame))}
+
+    out = {planner: rates(trials[trials.planner == planner]) for planner in ("mat", "baseline")}
+    for key, label in (("hand", "per_hand"), ("scale", "per_scale")):
+        out[label] = {str(value): {planner: rates(group[group.planner == planner])["force_closure_rate"]
+                                   for planner in ("mat", "baseline")}
+                      for value, group in trials.groupby(key, sort=True)}
+    table = results(trials, sorted(set(map(tuple, trials[KEYS].itertuples(index=False)))))
+    compared = table.dropna(subset=["mat_force_closure_pct", "baseline_force_closure_pct"])
+    out["runs_compared"] = int(len(compared))
+    out["runs_mat_above_baseline"] = int((compared.mat_force_closure_pct > compared.baseline_force_closure_pct).sum())
+    return out
+
+
+def plot_tables(table, trials, *, bins=20):
+    """Tables for ``dvc plots``: from :func:`results`' ``table``, the force-closure % of each run
+    (``run`` = "object xscale hand", 0 where there were no trials) per planner; from ``trials``,
+    the epsilon histograms of the force-closure trials (counts per bin over [0, largest epsilon])."""
+    run = table.object + " x" + table.scale.map("{:g}".format) + " " + table.hand
+    force_closure = {planner: pd.DataFrame({"run": run, "force_closure_pct": table[f"{planner}_force_closure_pct"]
+                                            .fillna(0.0).round(2)}) for planner in ("mat", "baseline")}
+    closed = trials[trials.outcome == "force_closure"]
+    top = float(closed.epsilon.max()) if len(closed) else 1.0
+    edges = np.linspace(0.0, top if top > 0 else 1.0, bins + 1)
+    histogram = pd.DataFrame({"epsilon": np.round((edges[:-1] + edges[1:]) / 2, 6)})
+    for planner in ("mat", "baseline"):
+        histogram[planner] = np.histogram(closed.epsilon[closed.planner == planner], bins=edges)[0]
+    return force_closure, histogram
+
+
+def timing_table(timings):
+    """Per-stage wall time from ``[{"stage", "seconds", "process_seconds"}, ...]``: runs, total,
+    median and largest seconds of the work, and the total of whole processes (imports included),
+    in pipeline order."""
+    order = ["sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate", "report"]
+    frame = pd.DataFrame(timings, columns=["stage", "seconds", "process_seconds"])
+    frame["process_seconds"] = frame.process_seconds.fillna(frame.seconds)
+    table = frame.groupby("stage").agg(runs=("seconds", "size"), total_s=("seconds", "sum"),
+                                       median_s=("seconds", "median"), max_s=("seconds", "max"),
+                                       process_total_s=("process_seconds", "sum"))
+    return table.reindex([stage for stage in order if stage in table.index]).reset_index()
+
+
+def _pct(value, count):
+    return "-" if count == 0 or pd.isna(value) else f"{value:.1f}"
+
+
+def table_one(table, planner):
+    """Markdown of the paper's Table I layout for one planner: a row per object, a column per
+    hand and scale, cells the force-closure % ("-": no trials, the object had no candidates)."""
+    hands = list(dict.fromkeys(table.hand))
+    scales = list(dict.fromkeys(table.scale))
+    header = "| object | " + " | ".join(f"{HAND_TITLES.get(hand, hand)} x{scale:g}" for hand in hands
+                                       for scale in scales) + " |"
+    lines = [header, "| --- |" + " ---: |" * (len(hands) * len(scales))]
+    cells = table.set_index(KEYS)
+    for name in dict.fromkeys(table.object):
+        row = [_pct(cells.loc[key, f"{planner}_force_closure_pct"], cells.loc[key, f"{planner}_trials"])
+               if key in cells.index else "" for key in ((name, scale, hand) for hand in hands for scale in scales)]
+        lines.append(f"| {name} | " + " | ".join(row) + " |")
+    return "\n".join(lines)
+
+
+def runs_table(table):
+    """Markdown with a row per object x scale x hand: both planners' rates, trials and mean
+    epsilon, and the MAT trials' outcome counts."""
+    lines = ["| object | scale | hand | MAT % | baseline % | MAT trials | baseline trials | MAT mean eps "
+             "| baseline mean eps | " + " | ".join(OUTCOMES) + " |",
+             "| --- | ---: | --- |" + " ---: |" * (6 + len(OUTCOMES))]
+    for row in table.itertuples(index=False):
+        epsilon = [("-" if pd.isna(value) else f"{value:.4f}") for value in (row.mat_mean_epsilon,
+                                                                           row.baseline_mean_epsilon)]
+        counts = [str(getattr(row, outcome)) for outcome in OUTCOMES]
+        lines.append(f"| {row.object} | {row.scale:g} | {row.hand} | {_pct(row.mat_force_closure_pct, row.mat_trials)} "
+                     f"| {_pct(row.baseline_force_closure_pct, row.baseline_trials)} | {row.mat_trials} "
+                     f"| {row.baseline_trials} | {epsilon[0]} | {epsilon[1]} | " + " | ".join(counts) + " |")
+    return "\n".join(lines)
+
+
+def markdown(table, metrics_dict, timings, *, figures=(), settings=""):
+    """The whole report as Markdown.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        From :func:`results`.
+    metrics_dict : dict
+        From :func:`metrics`.
+    timings : pandas.DataFrame
+        From :func:`timing_table`.
+    figures : list of (caption, relative path)
+    settings : str
+        One line on the protocol (spheres per object, mu, seed), put under the title.
+    """
+    mat, baseline = metrics_dict["mat"], metrics_dict["baseline"]
+    compared = table.dropna(subset=["mat_force_closure_pct", "baseline_force_closure_pct"])
+    losing = compared[compared.mat_force_closure_pct <= compared.baseline_force_closure_pct]
+    empty = table[table.mat_trials == 0]
+
+    def rate(value):
+        return "-" if value is None else f"{100 * value:.1f} %"
+
+    parts = [
+        "# Grasp planning on the grid of medial spheres: results", "", settings, "",
+        f"MAT candidates: {mat['trials']} trials, force closure {rate(mat['force_closure_rate'])}; "
+        f"surface-normal baseline: {baseline['trials']} trials, {rate(baseline['force_closure_rate'])}. "
+        f"MAT is above the baseline in {metrics_dict['runs_mat_above_baseline']} of "
+        f"{metrics_dict['runs_compared']} runs (object x scale x hand) that have trials.", "",
+        "## Table I: force-closure % of the MAT candidates", "", table_one(table, "mat"), "",
+        "## The same for the surface-normal baseline", "", table_one(table, "baseline"), "",
+        "## Every run", "",
+        "Mean epsilon is over the force-closure trials (Ferrari-Canny L1, torque over the object's "
+        "largest radius); the outcome counts are the MAT trials'.", "", runs_table(table), "",
+    ]
+    if len(losing):
+        parts += ["Runs where MAT is not above the baseline: " + ", ".join(
+            f"{row.object} x{row.scale:g} {row.hand} ({row.mat_force_closure_pct:.1f} vs "
+            f"{row.baseline_force_closure_pct:.1f})" for row in losing.itertuples()) + ".", ""]
+    if len(empty):
+        parts += ["Runs without MAT trials (no sphere of the reduced set fits the hand): " + ", ".join(
+            f"{row.object} x{row.scale:g} {row.hand}" for row in empty.itertuples()) + ".", ""]
+    parts += ["## Time per stage", "",
+              "Wall seconds of each stage's work; the last column adds the Python start-up and imports of "
+              "its processes (DVC's own bookkeeping is not included).", "",
+              "| stage | runs | total s | median s | max s | with start-up s |", "| --- | ---: | ---: | ---: | ---: | ---: |"]
+    parts += [f"| {row.stage} | {row.runs} | {row.total_s:.1f} | {row.median_s:.2f} | {row.max_s:.2f} "
+              f"| {row.process_total_s:.1f} |" for row in timings.itertuples()]
+    if figures:
+        parts += ["", "## Figures", ""]
+        for caption, path in figures:
+            parts += [f"**{caption}**", "", f"![{caption}]({path})", ""]
+    return "\n".join(parts).rstrip() + "\n"

@@ -1,0 +1,103 @@
+"""Stage ``report``: python -m stages.report DATA_DIR OUT_DIR
+
+Reads ``DATA_DIR/<object>/<scale>/<hand>/trials.parquet`` of every object, scale and hand in
+params.yaml and every ``timing/*.json`` beside the artefacts; writes into OUT_DIR ``report.md``,
+``trials.parquet`` (every trial), ``metrics.json``, ``plots/*.csv`` and ``figures/*.png``.
+"""
+
+import io
+import json
+from pathlib import Path
+
+from pipeline.cli import one_line_errors, params, stage_args
+
+
+def run_dir(data, name, scale, hand=None):
+    folder = Path(data) / name / str(scale)
+    return folder / hand if hand else folder
+
+
+@one_line_errors
+def main(argv=None):
+    from pipeline import report
+    from pipeline.artefacts import atomic_write, read_table, write_table
+    from pipeline.errors import ArtefactError
+
+    args = stage_args(__doc__, "data", "out", argv=argv)
+    config = params()
+    out = Path(args.out)
+    runs = [(name, scale, hand) for name in config.objects for scale in config.scales
+            for hand in config.candidates.hands]
+    tables, timings = {}, []
+    for name, scale, hand in runs:
+        path = run_dir(args.data, name, scale, hand) / "trials.parquet"
+        if not path.is_file():
+            raise ArtefactError(f"{path}: missing; run `dvc repro` (the report needs every simulate stage)")
+        tables[(name, scale, hand)] = read_table(path)
+    for folder in {run_dir(args.data, name, scale) for name, scale, _ in runs}:
+        timings += [json.loads(path.read_text()) for path in sorted(folder.rglob("timing/*.json"))]
+    trials = report.combine(tables)
+    table = report.results(trials, runs)
+    metrics = report.metrics(trials)
+    force_closure, epsilon = report.plot_tables(table, trials, bins=config.report.epsilon_bins)
+
+    write_table(out / "trials.parquet", trials)
+    for planner, frame in force_closure.items():
+        atomic_write(out / "plots" / f"force_closure_{planner}.csv", lambda s, f=frame: f.to_csv(s, index=False))
+    atomic_write(out / "plots" / "epsilon.csv", lambda stream: epsilon.to_csv(stream, index=False))
+    atomic_write(out / "metrics.json", lambda stream: stream.write(json.dumps(metrics, indent=2).encode()))
+    figures = write_figures(args.data, out, config, trials)
+    settings = (f"Protocol: {config.simulate.spheres_per_object} random spheres of the reduced set per object, "
+                f"scale and hand, all their candidates tried, and as many surface-normal baseline trials; "
+                f"mu = {config.simulate.mu:g}, {config.simulate.cone_edges} cone edges, seed {config.seed}. "
+                f"Every trial: `trials.parquet` (pandas: `pd.read_parquet`).")
+    text = report.markdown(table, metrics, report.timing_table(timings), figures=figures, settings=settings)
+    atomic_write(out / "report.md", lambda stream: stream.write(text.encode()))
+    print(f"report {out / 'report.md'}: {len(trials)} trials in {len(runs)} runs; MAT force closure "
+          f"{100 * (metrics['mat']['force_closure_rate'] or 0):.1f} % vs baseline "
+          f"{100 * (metrics['baseline']['force_closure_rate'] or 0):.1f} %; MAT above the baseline in "
+          f"{metrics['runs_mat_above_baseline']} of {metrics['runs_compared']} runs")
+
+
+def write_figures(data, out, config, trials):
+    """PNGs of the objects named in ``report.figure_objects``: medial spheres and candidates
+    (paper Fig. 5), and the best grasps of each hand (Fig. 7). Returns (caption, path) pairs."""
+    import pandas as pd
+    from PIL import Image
+
+    from pipeline import figures
+    from pipeline.artefacts import MedialSpheres, SurfaceSamples, atomic_write, read_table
+    from pipeline.hands import get_hand
+    from pipeline.symmetry import Symmetry
+
+    def save(image, name):
+        buffer = io.BytesIO()
+        Image.fromarray(image).save(buffer, format="PNG")
+        atomic_write(out / "figures" / name, lambda stream: stream.write(buffer.getvalue()))
+        return f"figures/{name}"
+
+    captions = []
+    for name in config.report.figure_objects:
+        if name not in config.objects:
+            continue
+        for scale in config.scales:
+            folder = run_dir(data, name, scale)
+            candidates = [read_table(run_dir(data, name, scale, hand) / "candidates.parquet")
+                          for hand in config.candidates.hands]
+            image = figures.sphere_figure(MedialSpheres.load(folder / "spheres.npz"), Symmetry.load(folder / "symmetry.npz"),
+                                          pd.concat(candidates, ignore_index=True), title=f"{name} x{scale}")
+            captions.append((f"{name} x{scale}: medial spheres by diameter (red small, blue large); reduced set, "
+                             f"e1/e2 and candidate approaches by class", save(image, f"{name}-{scale}-spheres.png")))
+            surface = SurfaceSamples.load(folder / "surface.npz")
+            for hand_name in config.candidates.hands:
+                runs = trials[(trials.object == name) & (trials.scale == float(scale)) & (trials.hand == hand_name)
+                              & (trials.planner == "mat")].reset_index(drop=True)
+                images = figures.grasp_images(surface, get_hand(hand_name), runs, count=config.report.example_grasps)
+                if images:
+                    captions.append((f"{name} x{scale}, {hand_name}: the force-closure grasps with the highest epsilon",
+                                     save(figures.image_grid(images, len(images)), f"{name}-{scale}-{hand_name}-grasps.png")))
+    return captions
+
+
+if __name__ == "__main__":
+    main()
