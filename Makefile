@@ -1,5 +1,7 @@
 # Two commands: `make run` (set up + dvc repro) and `make test` (set up + the whole test suite).
-# Set-up is idempotent: system libraries, a pinned uv in .tools/, and .venv/ from uv.lock.
+# Set-up is idempotent: system libraries, a pinned uv in .tools/, and .venv/ from uv.lock, its bytecode
+# compiled at install: every DVC stage is a fresh Python process, and where PYTHONDONTWRITEBYTECODE is set
+# (as on this project's machines) each would otherwise compile numpy, pandas and trimesh from source.
 SHELL := /bin/bash
 PYTHON ?= python3.11
 UV_VERSION := 0.13.9
@@ -26,7 +28,7 @@ $(UV):
 	.tools/bin/pip install -q uv==$(UV_VERSION)
 
 $(VENV)/.synced: $(UV) pyproject.toml uv.lock
-	$(UV) sync --frozen --python $(PYTHON)
+	$(UV) sync --frozen --compile-bytecode --python $(PYTHON)
 	touch $@
 
 run: setup

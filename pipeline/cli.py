@@ -57,12 +57,19 @@ def timed(path, stage):
     yield
     if path:
         seconds = time.perf_counter() - start
-        try:  # /proc/self's timestamp is the process's start
-            process = max(time.time() - os.stat("/proc/self").st_ctime, seconds)
-        except OSError:
-            process = seconds
+        process = max(_process_age(), seconds)
         record = {"stage": stage, "seconds": round(seconds, 3), "process_seconds": round(process, 3)}
         atomic_write(path, lambda stream: stream.write(json.dumps(record).encode()))
+
+
+def _process_age():
+    """Seconds since this process started (Linux: /proc), else 0."""
+    try:
+        with open("/proc/self/stat") as stat, open("/proc/uptime") as uptime:
+            start_ticks = int(stat.read().rsplit(")", 1)[1].split()[19])  # field 22, starttime
+            return float(uptime.read().split()[0]) - start_ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return 0.0
 
 
 @contextlib.contextmanager

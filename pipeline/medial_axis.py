@@ -109,6 +109,19 @@ def shrinking_ball(points, normals, *, eps=0.2, min_chord=0.0, min_separation=0.
     return centers, radii[keep], keep, second[keep]
 
 
+def inner_balls(points, normals, centers):
+    """(m,) bool: the balls whose centre lies inside the object, behind the outward normal of
+    its nearest sample.
+
+    A ball the approximate growing pass wrongly found empty can keep its huge start radius
+    when the exact polish may not shrink it (the separation rule); its centre then lies
+    outside the object (seen on a thin-walled vase: three 0.24 m spheres beside it).
+    """
+    _, nearest = KDTree(points).query(centers, k=1)
+    nearest = nearest.astype(np.int64)
+    return ((centers - points[nearest]) * normals[nearest]).sum(axis=1) < 0.0
+
+
 def merge_close(centers, radii, *, absolute, relative):
     """Group balls of nearly the same centre and radius; one representative per group.
 
@@ -275,6 +288,9 @@ def medial_axis(surface, *, method="shrinking_ball", kdtree_eps=4.0, min_chord_f
                                              initial_radii=radii, **shrink)
         centers = points[sample_index] - radii[:, None] * normals[sample_index]
         defining[:, 1] = np.where(second >= 0, second, defining[:, 1])
+        inner = inner_balls(points, normals, centers)
+        centers, radii, sample_index, defining, spread = (centers[inner], radii[inner], sample_index[inner],
+                                                          defining[inner], spread[inner])
     return MedialAxis(centers=centers, radii=radii, sample_index=sample_index,
                       contacts=np.concatenate([defining, spread], axis=1),
                       method=method, key=content_key("medial_axis", params, surface.key))

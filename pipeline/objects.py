@@ -11,10 +11,12 @@ A source string is one of
 - a path to an OBJ/STL/PLY/OFF/GLB mesh, or a PLY point cloud with or without normals.
 
 Validation (``validate_mesh``) rejects with one line naming the file: no triangles,
-NaN/inf coordinates, open or non-manifold surfaces (after filling small holes), zero
+NaN/inf coordinates, open or non-manifold surfaces (after the hole repairs below), zero
 volume, and sizes outside the accepted extent range (wrong units). Documented repairs:
-duplicate vertices are merged, degenerate and duplicate faces dropped, inverted winding
-flipped, and several bodies united into one solid with manifold3d.
+duplicate vertices are merged, degenerate and duplicate faces dropped, small (triangle and
+quad) holes filled, planar open ends capped (``cap_planar_holes``: e.g. the open tube ends of
+the handle of pybullet's ``objects/mug.obj``), inverted winding flipped, and several bodies
+united into one solid with manifold3d.
 """
 
 from pathlib import Path
@@ -25,6 +27,10 @@ import trimesh
 from .errors import BadInputError
 
 MESH_SUFFIXES = {".obj", ".stl", ".ply", ".off", ".glb", ".gltf"}
+
+CAP_PLANARITY = 0.01
+"""An open boundary loop is capped only if each of its vertices lies within this fraction of the
+loop's largest extent from the loop's best-fit plane (0.01: 0.1 mm on a 1 cm tube end)."""
 
 _PRIMITIVES = {
     "box": lambda extents=(0.10, 0.06, 0.02): trimesh.creation.box(extents=extents),
@@ -157,6 +163,8 @@ def validate_mesh(mesh, *, name, min_extent, max_extent):
     if not mesh.is_watertight:
         mesh.fill_holes()
     if not mesh.is_watertight:
+        mesh = cap_planar_holes(mesh)
+    if not mesh.is_watertight:
         edge_uses = np.bincount(mesh.edges_unique_inverse, minlength=len(mesh.edges_unique))
         open_edges, shared = int((edge_uses == 1).sum()), int((edge_uses > 2).sum())
         raise BadInputError(f"{name}: surface is not closed ({open_edges} open edges, "
@@ -164,11 +172,65 @@ def validate_mesh(mesh, *, name, min_extent, max_extent):
     bodies = mesh.split(only_watertight=False)
     if len(bodies) > 1:
         mesh = _unite(bodies, name)
-    if mesh.volume < 0:
-        mesh.invert()
-    if not mesh.volume > 1e-12 * diagonal ** 3:
+    with np.errstate(divide="ignore", invalid="ignore"):  # trimesh's centre of mass divides by the volume
+        volume = mesh.volume
+    if not abs(volume) > 1e-12 * diagonal ** 3:  # e.g. a flat sheet, whose outline was capped
         raise BadInputError(f"{name}: encloses zero volume")
+    if volume < 0:
+        mesh.invert()
     return mesh
+
+
+def cap_planar_holes(mesh, *, planarity=CAP_PLANARITY):
+    """Close every open boundary loop with a fan of triangles about its centroid, if all are safe to close.
+
+    A loop is safe when it is simple (each of its vertices has one incoming and one outgoing
+    open edge, consistently wound), planar (every vertex within ``planarity`` x the loop's
+    largest extent of its best-fit plane) and star-shaped from its centroid (the fan winds
+    once, every triangle the same way round, so no cap triangle overlaps another). The caps
+    reverse the loop's open edges, so their winding agrees with the adjacent faces. Note
+    that a single-sheet open shell (a cup modelled without wall thickness) becomes the
+    solid it bounds.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+        Never modified.
+    planarity : float
+        See :data:`CAP_PLANARITY`.
+
+    Returns
+    -------
+    trimesh.Trimesh
+        A new mesh with one centroid vertex and one cap per loop; ``mesh`` itself when it has
+        no open edge or any loop is not safe (the caller then rejects the open surface).
+    """
+    open_edges = mesh.edges[trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)]  # directed as in faces
+    tails, heads = open_edges[:, 0], open_edges[:, 1]
+    if len(open_edges) == 0 or len(np.unique(tails)) < len(tails) or not np.array_equal(np.sort(tails),
+                                                                                         np.sort(heads)):
+        return mesh  # no loop, or a vertex on two holes, or a hole wound both ways
+    successor = dict(zip(tails.tolist(), heads.tolist()))
+    vertices, centres, caps = np.asarray(mesh.vertices), [], []
+    while successor:
+        loop = [next(iter(successor))]
+        while (after := successor.pop(loop[-1])) != loop[0]:
+            loop.append(after)
+        points = vertices[loop]
+        centre = points.mean(axis=0)
+        ring = points - centre
+        normal = np.linalg.svd(ring, full_matrices=False)[2][2]
+        if np.abs(ring @ normal).max() > planarity * np.ptp(points, axis=0).max():
+            return mesh
+        ahead = np.roll(ring, -1, axis=0)
+        turn = np.arctan2(np.cross(ring, ahead) @ normal, (ring * ahead).sum(axis=1))  # (len(loop),) radians
+        if not (np.all(turn > 0) or np.all(turn < 0)) or abs(abs(turn.sum()) - 2 * np.pi) > 1e-6:
+            return mesh
+        # triangle (centre, v[i+1], v[i]) holds the open edge v[i] -> v[i+1] reversed
+        centre_index = len(vertices) + len(centres)
+        centres.append(centre)
+        caps.append(np.column_stack([np.full(len(loop), centre_index), np.roll(loop, -1), loop]))
+    return trimesh.Trimesh(np.vstack([vertices, centres]), np.vstack([mesh.faces, *caps]), process=True)
 
 
 def _unite(bodies, name):

@@ -79,12 +79,19 @@ def kettle():
 
 
 def vase():
-    """Vase 25 cm tall, hollow with a 4 mm wall and open top: a 6 cm base radius swelling to
-    9 cm, a 3 cm neck (graspable by both hands) and a flared lip of 4.5 cm."""
+    """Amphora-like vase 25 cm tall, 21.6 cm across its handles, hollow with a 4 mm wall and open
+    top: a 6 cm base radius swelling to 9 cm, a 3 cm neck and a flared lip of 4.5 cm. Two
+    handles of 8 mm radius on +-x leave the neck at 21 cm, run down 10 cm from the axis and
+    enter the shoulder at 14 cm. The hollow body is too thick to grasp and its walls are
+    plates, so the handles are where both hands grasp it (Fig. 10)."""
     outside = [(0, 0), (0.06, 0), (0.09, 0.08), (0.07, 0.15), (0.03, 0.20), (0.03, 0.23), (0.045, 0.25), (0, 0.25)]
     inside = [(0, 0.006), (0.056, 0.006), (0.086, 0.08), (0.066, 0.15), (0.026, 0.20), (0.026, 0.23),
               (0.041, 0.2501), (0, 0.2501)]
-    return _to_trimesh(_revolved(outside) - _revolved(inside))
+    parts = [_revolved(outside)]
+    for side in (-1, 1):
+        corners = [(0.028 * side, 0, 0.21), (0.10 * side, 0, 0.21), (0.10 * side, 0, 0.14), (0.065 * side, 0, 0.14)]
+        parts += [_limb(start, end, 0.008) for start, end in zip(corners, corners[1:])]
+    return _to_trimesh(manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add) - _revolved(inside))
 
 
 def table():

@@ -212,11 +212,13 @@ def classify(sphere_grid, *, min_object_angle_deg=120.0, min_diameter_m=0.0, max
         radius = float(search_radius)
     selected = select(sphere_grid, min_object_angle=np.radians(min_object_angle_deg),
                       min_diameter=min_diameter_m, max_diameter_ratio=max_diameter_ratio)
-    # only the reduced set takes part in the analysis (paper III-B)
-    centroid, count, scatter, cell = cell_moments(centers[selected], pca_cell_fraction * radius)
-    # one neighbourhood per cell, centred on the cell's centroid: the spheres of a cell share it
-    eigenvalues, axes, cog, counts = (value[cell] for value in neighbourhood_pca(centroid, radius, centroid,
-                                                                                 count, scatter))
+    if not len(selected):  # nothing passes the object-angle filter: no symmetry to find, no candidates
+        eigenvalues, axes, cog, counts = np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0, int)
+    else:  # only the reduced set takes part in the analysis (paper III-B)
+        centroid, count, scatter, cell = cell_moments(centers[selected], pca_cell_fraction * radius)
+        # one neighbourhood per cell, centred on the cell's centroid: the spheres of a cell share it
+        eigenvalues, axes, cog, counts = (value[cell] for value in neighbourhood_pca(centroid, radius, centroid,
+                                                                                     count, scatter))
     with np.errstate(divide="ignore", invalid="ignore"):
         rho = np.where(eigenvalues[:, 0] > 0, eigenvalues[:, 1] / eigenvalues[:, 0], np.nan)
     class_id = np.full(len(selected), INTERIOR)

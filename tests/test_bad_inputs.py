@@ -17,7 +17,7 @@ def run_sample(tmp_path, spec, extra=None):
     params = {"objects": {"thing": spec}, "sample": {"count": 2000}}
     params.update(extra or {})
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
-    result = subprocess.run([sys.executable, "-m", "stages.sample", "thing", "out/surface.npz"], cwd=tmp_path,
+    result = subprocess.run([sys.executable, "-m", "stages.sample", "thing", "1.0", "out/surface.npz"], cwd=tmp_path,
                             capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(REPO)})
     return result, tmp_path / "out" / "surface.npz"
 
@@ -152,3 +152,55 @@ def test_point_cloud_with_and_without_normals(tmp_path):
         assert len(surface.points) == 3000 and (surface.face_index == -1).all()
         assert ((surface.normals * direction).sum(axis=1) > 0.95).all()
         out.unlink()
+
+
+def open_tube(radius=0.02, height=0.1, sections=128, wave=0.0):
+    """trimesh's cylinder without its two end caps; ``wave`` (m) bends the top rim out of its plane."""
+    tube = trimesh.creation.cylinder(radius=radius, height=height, sections=sections)
+    vertices = tube.vertices.copy()
+    top = vertices[:, 2] > 0
+    vertices[top, 2] += wave * np.cos(3 * np.arctan2(vertices[top, 1], vertices[top, 0]))
+    return trimesh.Trimesh(vertices, tube.faces[np.abs(tube.face_normals[:, 2]) < 0.5])
+
+
+def test_planar_open_ends_are_capped():
+    from pipeline.objects import cap_planar_holes, validate_mesh
+
+    tube = open_tube()
+    before = tube.vertices.copy(), tube.faces.copy()
+    assert len(tube.outline().entities) == 2
+    mesh = validate_mesh(tube, name="tube", min_extent=0.005, max_extent=5.0)
+    assert mesh.is_watertight and mesh.is_winding_consistent and len(mesh.split(only_watertight=False)) == 1
+    # the capped tube is the cylinder: pi r^2 h, less 0.04 % for the 128-gon section
+    np.testing.assert_allclose(mesh.volume, np.pi * 0.02 ** 2 * 0.1, rtol=0.01)
+    assert np.array_equal(tube.vertices, before[0]) and np.array_equal(tube.faces, before[1])
+    assert cap_planar_holes(tube).volume == pytest.approx(mesh.volume)
+
+
+def test_non_planar_open_end_is_rejected(tmp_path):
+    # a rim waving +-4 mm on a 4 cm tube is 10 % of the loop out of plane: not capped
+    tube = open_tube(wave=0.004)
+    path = write_obj(tmp_path / "wavy.obj", tube.vertices, tube.faces)
+    result, out = run_sample(tmp_path, {"source": path})
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 2 and len(lines) == 1
+    assert "wavy.obj" in lines[0] and "not closed (256 open edges" in lines[0]
+    assert not out.exists()
+
+
+def test_pybullet_mug_is_capped_and_united():
+    # pybullet_data's objects/mug.obj: a watertight hollow cup and a handle tube whose two open
+    # 12-gon ends (y = 0.0385 m) sit in the cup wall
+    from pipeline.objects import cap_planar_holes, load_source, validate_mesh
+
+    _, raw = load_source("pybullet:objects/mug.obj")
+    raw = trimesh.Trimesh(raw.vertices, raw.faces)
+    cup, handle = sorted(raw.split(only_watertight=False), key=lambda body: -len(body.faces))
+    assert cup.is_watertight and not handle.is_watertight
+    handle = cap_planar_holes(handle)
+    assert handle.is_watertight and handle.volume > 0
+    mesh = validate_mesh(raw, name="mug", min_extent=0.005, max_extent=5.0)
+    assert mesh.is_watertight and len(mesh.split(only_watertight=False)) == 1
+    # the union holds the cup and nearly all the handle (its ends overlap the wall)
+    assert cup.volume + 0.9 * handle.volume < mesh.volume <= cup.volume + handle.volume
+    np.testing.assert_allclose(mesh.extents, [0.082, 0.122, 0.1], atol=0.001)
