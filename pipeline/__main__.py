@@ -25,6 +25,8 @@ def main(argv=None):
                       help="surface-normal baseline trials per hand (default: as many as the MAT trials)")
     plan.add_argument("--workers", type=int, default=None, help="trial processes (default: every core)")
     plan.add_argument("--no-simulate", action="store_true", help="stop after the candidates")
+    plan.add_argument("--record", action="store_true",
+                      help="also write recording.rrd (open with `rerun`) and log.mcap into --out")
     plan.add_argument("--params", default=None,
                       help=f"params file (default: {PARAMS_FILE} if present, else built-in defaults)")
     bench = commands.add_parser("bench", help="benchmark medial_axis + mat (vs voronoi_poles), classify + candidates "
@@ -110,6 +112,14 @@ def _plan(args):
                                        trial_progress=trial_progress)
     result = summary(artefacts, timings, source=args.mesh, scale=args.scale, seed=seed)
     write_plan(args.out, artefacts, result)
+    if args.record:
+        from .hands import get_hand
+        from .recording import record_chain
+
+        name = Path(args.mesh.split(":")[-1]).stem or "object"
+        record_chain(Path(args.out) / "recording.rrd", Path(args.out) / "log.mcap", artefacts, result, name=name,
+                     hands=[get_hand(hand) for hand in (args.hand or params.candidates.hands)],
+                     settings=params.simulate.world_settings())
     brief = {**result["counts"], "classes": result["classes"], "candidates": result["candidates"]}
     if "trials" in result:
         brief.update({key: result[key] for key in ("trials", "force_closure_rate", "mean_epsilon", "outcomes")})

@@ -138,6 +138,15 @@ class GraspWorld:
             halves.append(_half_extents(geometry, dimensions, self.hand.name))
         return np.array(centres), np.array(rotations), np.array(halves)
 
+    def link_boxes(self, base_position, base_orientation, joints):
+        """Every link's collision box with the hand's URDF base at ``base_position`` (m) and
+        ``base_orientation`` (quaternion x y z w) and ``joints`` (name -> value): world centres
+        (n, 3), rotations (n, 3, 3) and half extents (n, 3), slot = link + 1."""
+        self._set_joints(joints)
+        self._place(base_position, base_orientation)
+        centres, rotations = self._poses()
+        return centres, rotations, self.boxes[2]
+
     def _levers(self):
         """Per finger, ``levers[i, k]``: how far (m) a point of link k moves per unit of joint i
         (radius about a revolute joint, open hand; 1 for a prismatic joint); 0 when i > k."""

@@ -1,0 +1,311 @@
+"""Recordings of what the planner did: rerun ``.rrd`` files for the 3D viewer and MCAP logs of
+typed JSON messages. Only the commands and stages record; the algorithms return the values shown.
+
+rerun entities (metres, the object frame; ``root`` is ``/<object>``): ``surface/mesh``,
+``surface/samples`` (with ``surface/normals``), ``spheres`` (every medial sphere as an ellipsoid
+coloured red -> green -> blue by diameter, object angle per sphere), ``reduced`` (the reduced
+set, coloured by class), ``symmetry/e1``, ``symmetry/e2``, ``symmetry/cog`` (spheres carrying
+candidates), ``candidates/<hand>/approach`` (arrows ending at P_g along P_d) and
+``candidates/<hand>/orient`` (P_o marks), and on the ``trial`` timeline, one step per trial,
+``trials/<hand>/hand/{approach,retracted,closed}`` (the hand's link boxes),
+``trials/<hand>/contacts`` with ``normals`` and ``cones``, ``trials/<hand>/epsilon`` and
+``trials/<hand>/outcome`` (scalars; the outcome as its index in :data:`OUTCOMES`).
+
+Files are written beside their final name and renamed into place when complete: an interrupted
+run never leaves a truncated file under the final name.
+"""
+
+import contextlib
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .candidates import vectors
+from .figures import diameter_colours
+from .simulation import OUTCOMES
+
+TRIAL_TIMELINE = "trial"
+CLASS_COLOURS = {"axis": (255, 140, 0), "rim": (40, 170, 60), "interior": (150, 150, 150),
+                 "isolated": (150, 60, 200), "pair": (0, 150, 220), "surface": (90, 90, 90)}
+OUTCOME_COLOURS = {"force_closure": (40, 170, 60), "no_force_closure": (230, 160, 0), "no_contact": (120, 120, 120),
+                   "collision": (220, 40, 40), "error": (0, 0, 0)}
+
+
+@contextlib.contextmanager
+def _atomic_path(path):
+    """Yield a temp path beside ``path``; rename it to ``path`` if the block succeeds, else delete it."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(handle)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+
+
+@contextlib.contextmanager
+def rerun_recording(path, *, recording_id, application_id="medial-grasp"):
+    """A ``rerun.RecordingStream`` saving to ``path`` (.rrd), renamed into place on success.
+
+    Recordings with the same ``application_id`` and ``recording_id`` merge in the viewer, so
+    the stages of one object can each write their own file.
+    """
+    import rerun as rr
+
+    with _atomic_path(path) as tmp:
+        stream = rr.RecordingStream(application_id, recording_id=recording_id, send_properties=False)
+        stream.set_log_time_enabled(False)  # no wall-clock timeline: the trial index is the time
+        stream.save(tmp)
+        try:
+            yield stream
+        finally:
+            stream.flush()
+            stream.disconnect()
+
+
+def log_surface(stream, root, surface, *, max_normals=2000, seed=0):
+    """The object mesh, its surface samples and (a seeded subset of) their outward normals."""
+    import rerun as rr
+
+    stream.log(f"{root}/surface/mesh", rr.Mesh3D(vertex_positions=surface.vertices, triangle_indices=surface.faces,
+                                                 albedo_factor=(200, 140, 70, 120)), static=True)
+    stream.log(f"{root}/surface/samples", rr.Points3D(surface.points, radii=0.25 * surface.spacing,
+                                                      colors=(110, 110, 110)), static=True)
+    shown = np.random.default_rng(seed).permutation(len(surface.points))[:max_normals]
+    stream.log(f"{root}/surface/normals", rr.Arrows3D(origins=surface.points[shown],
+                                                      vectors=4 * surface.spacing * surface.normals[shown],
+                                                      colors=(60, 120, 220)), static=True)
+
+
+def log_spheres(stream, root, spheres):
+    """Every medial sphere as an ellipsoid, coloured by diameter, with its object angle (deg)."""
+    import rerun as rr
+
+    colours = (255 * diameter_colours(2 * spheres.radii)).astype(np.uint8)
+    stream.log(f"{root}/spheres", rr.Ellipsoids3D(centers=spheres.centers, radii=spheres.radii, colors=colours,
+                                                  fill_mode="solid"),
+               rr.AnyValues(object_angle_deg=np.degrees(spheres.object_angle), radius_m=spheres.radii), static=True)
+
+
+def log_symmetry(stream, root, symmetry, *, with_candidates=None):
+    """The reduced set coloured by class; e1, e2 and the neighbourhood centre of gravity of the
+    spheres listed in ``with_candidates`` (sphere indices; all if None)."""
+    import rerun as rr
+
+    names = np.asarray(symmetry.class_names())
+    colours = np.array([CLASS_COLOURS[name] for name in names], np.uint8).reshape(-1, 3)
+    stream.log(f"{root}/reduced", rr.Points3D(symmetry.centers, radii=0.5 * symmetry.radii, colors=colours,
+                                              labels=names, show_labels=False),
+               rr.AnyValues(rho=symmetry.rho, sphere_index=symmetry.sphere_index), static=True)
+    chosen = np.ones(len(symmetry), bool) if with_candidates is None else np.isin(symmetry.sphere_index,
+                                                                                with_candidates)
+    axes = symmetry.axes.reshape(-1, 3, 3)[chosen]
+    length = 2 * symmetry.radii[chosen, None]
+    for number, colour in ((0, (200, 30, 30)), (1, (30, 60, 220))):
+        stream.log(f"{root}/symmetry/e{number + 1}", rr.Arrows3D(origins=symmetry.centers[chosen],
+                                                                 vectors=length * axes[:, number], colors=colour),
+                   static=True)
+    stream.log(f"{root}/symmetry/cog", rr.Points3D(symmetry.cog[chosen], colors=(0, 0, 0)), static=True)
+
+
+def log_candidates(stream, root, candidates, *, length):
+    """Per hand: the candidates' approach as arrows of ``length`` (m) ending at P_g along P_d,
+    coloured by sphere class, and P_o as a short mark at P_g."""
+    import rerun as rr
+
+    for hand, rows in candidates.groupby("hand", sort=True):
+        grasp, approach, orient = (vectors(rows, prefix) for prefix in ("grasp", "approach", "orient"))
+        colours = np.array([CLASS_COLOURS.get(str(name), (0, 0, 0)) for name in rows.sphere_class], np.uint8)
+        stream.log(f"{root}/candidates/{hand}/approach", rr.Arrows3D(origins=grasp - length * approach,
+                                                                     vectors=length * approach, colors=colours),
+                   rr.AnyValues(candidate_id=rows.id.to_numpy()), static=True)
+        stream.log(f"{root}/candidates/{hand}/orient", rr.Arrows3D(origins=grasp, vectors=0.3 * length * orient,
+                                                                   colors=(220, 0, 220)), static=True)
+
+
+def log_trials(stream, root, surface, hand, trials, contacts, *, settings=None):
+    """One step of the ``trial`` timeline per row of ``trials`` (one hand's; the contacts'
+    ``trial`` column indexes its rows): the hand's link boxes at approach, after retract and
+    closed, the contacts with normals and friction cones, epsilon and the outcome."""
+    import rerun as rr
+    from scipy.spatial.transform import Rotation
+
+    from .quality import friction_cone
+    from .simulation import GraspWorld
+
+    settings = settings or {}
+    world = GraspWorld(surface, hand, **settings)
+    cone_edges, mu = settings.get("cone_edges", 8), settings.get("mu", 0.5)
+    by_trial = dict(tuple(contacts.groupby("trial"))) if len(contacts) else {}
+    base = trials[["base_x", "base_y", "base_z"]].to_numpy()
+    quaternion = trials[["base_qx", "base_qy", "base_qz", "base_qw"]].to_numpy()
+    approach = vectors(trials, "approach")
+    names = list(hand.limits)
+    open_joints = hand.preshape()
+    scale = 0.1 * float(np.linalg.norm(np.ptp(surface.points, axis=0)))
+    try:
+        for number, row in enumerate(trials.itertuples(index=False)):
+            stream.set_time(TRIAL_TIMELINE, sequence=number)
+            path = f"{root}/trials/{hand.name}"
+            colour = OUTCOME_COLOURS.get(str(row.outcome), (0, 0, 0))
+            if np.isfinite(base[number]).all():
+                closed = dict(zip(names, row.joints))
+                poses = (("approach", base[number] + row.retract_m * approach[number], open_joints),
+                         ("retracted", base[number], open_joints), ("closed", base[number], closed))
+                for name, position, joints in poses:
+                    centres, rotations, halves = world.link_boxes(position, quaternion[number], joints)
+                    stream.log(f"{path}/hand/{name}", rr.Boxes3D(
+                        centers=centres, half_sizes=halves, colors=colour,
+                        quaternions=Rotation.from_matrix(rotations).as_quat()))  # x y z w
+            else:  # an error before the hand was placed
+                for name in ("approach", "retracted", "closed"):
+                    stream.log(f"{path}/hand/{name}", rr.Clear(recursive=False))
+            points = by_trial.get(number)
+            if points is not None:
+                position = points[["x", "y", "z"]].to_numpy()
+                normal = points[["nx", "ny", "nz"]].to_numpy()
+                stream.log(f"{path}/contacts", rr.Points3D(position, colors=(230, 30, 30)))
+                stream.log(f"{path}/normals", rr.Arrows3D(origins=position, vectors=-0.3 * scale * normal))
+                edges = friction_cone(-normal, mu=mu, edges=cone_edges)  # (contacts, edges, 3), inward
+                tips = position[:, None] + 0.3 * scale * edges / np.linalg.norm(edges, axis=2, keepdims=True)
+                strips = np.stack([np.broadcast_to(position[:, None], tips.shape), tips], axis=2).reshape(-1, 2, 3)
+                stream.log(f"{path}/cones", rr.LineStrips3D(strips, colors=(250, 200, 0)))
+            else:
+                for name in ("contacts", "normals", "cones"):
+                    stream.log(f"{path}/{name}", rr.Clear(recursive=False))
+            stream.log(f"{path}/epsilon", rr.Scalars(float(row.epsilon)))
+            stream.log(f"{path}/outcome", rr.Scalars(float(OUTCOMES.index(str(row.outcome)))),
+                       rr.TextLog(f"{row.planner} {row.outcome} eps {row.epsilon:.4f}"))
+    finally:
+        world.close()
+
+
+def send_blueprint(stream, root):
+    """Open on the 3D scene beside the trial scalars."""
+    import rerun.blueprint as rrb
+
+    stream.send_blueprint(rrb.Blueprint(rrb.Horizontal(
+        rrb.Spatial3DView(origin=root, name="object, spheres, grasps"),
+        rrb.Vertical(rrb.TimeSeriesView(origin=f"{root}/trials", name="epsilon and outcome"),
+                     rrb.TextLogView(origin=f"{root}/trials", name="trials")),
+        column_shares=[3, 1])))
+
+
+class McapLog:
+    """MCAP file of JSON messages, one channel per topic, each with a JSON schema.
+
+    Topics: ``/stage`` (start, end), ``/params``, ``/artefacts`` (path and hash of inputs and
+    outputs), ``/counts``, ``/timing``, ``/warning`` and ``/trials`` (one message per trial).
+    """
+
+    SCHEMAS = {
+        "/stage": {"type": "object", "properties": {"stage": {"type": "string"}, "event": {"type": "string"}}},
+        "/params": {"type": "object"},
+        "/artefacts": {"type": "object", "properties": {"role": {"type": "string"}, "path": {"type": "string"},
+                                                        "sha256": {"type": "string"}}},
+        "/counts": {"type": "object"},
+        "/timing": {"type": "object", "properties": {"stage": {"type": "string"}, "seconds": {"type": "number"}}},
+        "/warning": {"type": "object", "properties": {"message": {"type": "string"}}},
+        "/trials": {"type": "object"},
+    }
+
+    def __init__(self, writer):
+        self.writer, self.channels = writer, {}
+
+    def log(self, topic, message):
+        """Write ``message`` (a JSON-able dict) on ``topic``, stamped with the wall clock."""
+        if topic not in self.channels:
+            schema = self.writer.register_schema(name=topic.strip("/"), encoding="jsonschema",
+                                                 data=json.dumps(self.SCHEMAS[topic]).encode())
+            self.channels[topic] = self.writer.register_channel(topic=topic, message_encoding="json",
+                                                                schema_id=schema)
+        now = time.time_ns()
+        self.writer.add_message(self.channels[topic], log_time=now, publish_time=now,
+                                data=json.dumps(message, default=_plain).encode())
+
+    def trials(self, trials):
+        """One ``/trials`` message per row, every column (joints as a list)."""
+        for row in trials.to_dict(orient="records"):
+            self.log("/trials", row)
+
+
+def _plain(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return str(value)
+
+
+@contextlib.contextmanager
+def mcap_log(path, stage):
+    """An :class:`McapLog` writing to ``path`` (.mcap), with the stage's start and end messages;
+    renamed into place on success."""
+    from mcap.writer import Writer
+
+    with _atomic_path(path) as tmp, open(tmp, "wb") as stream:
+        writer = Writer(stream)
+        writer.start(profile="", library="medial-grasp")
+        log = McapLog(writer)
+        log.log("/stage", {"stage": stage, "event": "start"})
+        start = time.perf_counter()
+        yield log
+        log.log("/timing", {"stage": stage, "seconds": round(time.perf_counter() - start, 3)})
+        log.log("/stage", {"stage": stage, "event": "end"})
+        writer.finish()
+
+
+def file_hash(path):
+    """sha256 of a file's bytes (hex)."""
+    import hashlib
+
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def record_chain(rrd_path, mcap_path, artefacts, summary_dict, *, name, hands, settings=None):
+    """Record a chain run (:func:`pipeline.plan.run_chain`'s artefacts) as one .rrd and one .mcap.
+
+    Parameters
+    ----------
+    rrd_path, mcap_path : str or Path
+    artefacts : dict stage -> artefact, with ``trials`` and ``contacts`` if simulated
+    summary_dict : dict
+        :func:`pipeline.plan.summary` (counts and timings go to the MCAP log).
+    name : str
+        The object's name: the entity root is ``/<name>`` and the recording id ``name``.
+    hands : list of Hand
+    settings : dict, optional
+        The trials' :class:`GraspWorld` keywords (mu and cone edges draw the cones).
+    """
+    root = f"/{name}"
+    surface, candidates = artefacts["sample"], artefacts["candidates"]
+    with rerun_recording(rrd_path, recording_id=name) as stream:
+        send_blueprint(stream, root)
+        log_surface(stream, root, surface)
+        log_spheres(stream, root, artefacts["mat"])
+        log_symmetry(stream, root, artefacts["classify"], with_candidates=np.unique(candidates.sphere_index))
+        log_candidates(stream, root, candidates, length=0.05 * float(np.linalg.norm(np.ptp(surface.points, axis=0))))
+        if "trials" in artefacts:
+            trials, contacts = artefacts["trials"], artefacts["contacts"]
+            for hand in hands:
+                rows = np.flatnonzero(trials.hand.to_numpy() == hand.name)
+                own = contacts[contacts.trial.isin(rows)].assign(trial=lambda frame: np.searchsorted(rows, frame.trial))
+                log_trials(stream, root, surface, hand, trials.iloc[rows].reset_index(drop=True), own,
+                           settings=settings)
+    with mcap_log(mcap_path, "plan") as log:
+        log.log("/params", {"source": summary_dict["source"], "scale": summary_dict["scale"],
+                            "seed": summary_dict["seed"], "hands": [hand.name for hand in hands], **(settings or {})})
+        log.log("/counts", {**summary_dict["counts"], "classes": summary_dict["classes"],
+                            "candidates": summary_dict["candidates"]})
+        for stage, seconds in summary_dict["timings_s"].items():
+            log.log("/timing", {"stage": stage, "seconds": seconds})
+        if not len(candidates):
+            log.log("/warning", {"message": f"{name}: no candidate grasp (no sphere of the reduced set fits a hand)"})
+        if "trials" in artefacts:
+            log.trials(artefacts["trials"])

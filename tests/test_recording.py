@@ -1,0 +1,99 @@
+"""Recordings read back: the .rrd with rerun's RrdReader, the .mcap with the mcap reader."""
+
+import json
+
+import numpy as np
+import pyarrow as pa
+import pytest
+from mcap.reader import make_reader
+from rerun.chunk import RrdReader
+
+from pipeline.hands import get_hand
+from pipeline.params import Params, SampleParams, SimulateParams
+from pipeline.plan import run_chain, summary
+from pipeline.recording import mcap_log, record_chain, rerun_recording
+
+HANDS = ["armar3", "barrett"]
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("recorded")
+    params = Params(sample=SampleParams(count=3000), simulate=SimulateParams(spheres_per_object=2, baseline_trials=3,
+                                                                             workers=1))
+    artefacts, timings = run_chain("primitive:capsule", params, seed=0, hands=HANDS, simulate=True)
+    result = summary(artefacts, timings, source="primitive:capsule", scale=1.0, seed=0)
+    record_chain(folder / "capsule.rrd", folder / "capsule.mcap", artefacts, result, name="capsule",
+                 hands=[get_hand(hand) for hand in HANDS], settings=params.simulate.world_settings())
+    return folder, artefacts
+
+
+def rows_of(path, entity):
+    """The record batches logged to ``entity`` in the .rrd at ``path``, concatenated."""
+    batches = [chunk.to_record_batch() for chunk in RrdReader(path).stream() if chunk.entity_path == entity]
+    assert batches, f"no chunk for {entity}"
+    return pa.Table.from_batches(batches)
+
+
+def instances(path, entity, column):
+    table = rows_of(path, entity)
+    return sum(len(value) for value in table.column(column).to_pylist() if value is not None)
+
+
+def test_rrd_holds_every_sphere_candidate_and_one_step_per_trial(recorded):
+    folder, artefacts = recorded
+    path = folder / "capsule.rrd"
+    assert instances(path, "/capsule/spheres", "Ellipsoids3D:centers") == len(artefacts["mat"])
+    assert instances(path, "/capsule/reduced", "Points3D:positions") == len(artefacts["classify"])
+    trials = artefacts["trials"]
+    for hand in HANDS:
+        candidates = artefacts["candidates"]
+        assert instances(path, f"/capsule/candidates/{hand}/approach", "Arrows3D:vectors") == \
+            int((candidates.hand == hand).sum())
+        steps = rows_of(path, f"/capsule/trials/{hand}/outcome").column("trial").to_pylist()
+        own = trials[trials.hand == hand].reset_index(drop=True)
+        assert sorted(steps) == list(range(len(own))) and len(own) > 0
+        # the hand's closed pose: one box per link at every trial
+        closed = rows_of(path, f"/capsule/trials/{hand}/hand/closed")
+        assert closed.num_rows == len(own)
+        sizes = {len(value) for value in closed.column("Boxes3D:half_sizes").to_pylist()}
+        assert sizes == {len(get_hand(hand).links)}
+        epsilon = rows_of(path, f"/capsule/trials/{hand}/epsilon")
+        by_step = dict(zip(epsilon.column("trial").to_pylist(), epsilon.column("Scalars:scalars").to_pylist()))
+        assert [by_step[step][0] for step in range(len(own))] == pytest.approx(own.epsilon.tolist())
+
+
+def test_mcap_counts_and_one_trial_match_the_trials_table(recorded):
+    folder, artefacts = recorded
+    with open(folder / "capsule.mcap", "rb") as stream:
+        messages = [(channel.topic, json.loads(message.data), schema.encoding)
+                    for schema, channel, message in make_reader(stream).iter_messages()]
+    topics = [topic for topic, _, _ in messages]
+    trials = artefacts["trials"]
+    assert topics.count("/trials") == len(trials)
+    assert topics[0] == "/stage" and messages[0][1] == {"stage": "plan", "event": "start"}
+    assert messages[-1][1] == {"stage": "plan", "event": "end"}
+    assert {encoding for _, _, encoding in messages} == {"jsonschema"}
+    assert topics.count("/timing") == len(("sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates",
+                                            "simulate")) + 1
+    logged = [payload for topic, payload, _ in messages if topic == "/trials"]
+    row = trials.iloc[len(trials) // 2]
+    sent = logged[len(trials) // 2]
+    assert sent["outcome"] == row.outcome and sent["hand"] == row.hand and sent["planner"] == row.planner
+    assert sent["epsilon"] == pytest.approx(row.epsilon) and sent["joints"] == pytest.approx(list(row.joints))
+    assert [sent[f"base_{axis}"] for axis in "xyz"] == pytest.approx([row.base_x, row.base_y, row.base_z])
+
+
+def test_an_interrupted_recording_leaves_nothing_under_its_name(tmp_path):
+    import rerun as rr
+
+    for opener, name in ((lambda path: rerun_recording(path, recording_id="x"), "broken.rrd"),
+                         (lambda path: mcap_log(path, "stage"), "broken.mcap")):
+        with pytest.raises(KeyboardInterrupt):
+            with opener(tmp_path / name) as stream:
+                if name.endswith(".rrd"):
+                    stream.log("/points", rr.Points3D(np.zeros((10, 3))))
+                else:
+                    stream.log("/warning", {"message": "half-way"})
+                raise KeyboardInterrupt
+        assert list(tmp_path.iterdir()) == []
