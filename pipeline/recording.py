@@ -25,12 +25,14 @@ from pathlib import Path
 import numpy as np
 
 from .candidates import vectors
+from .figures import CLASS_COLOURS as FIGURE_CLASS_COLOURS
 from .figures import diameter_colours
 from .simulation import OUTCOMES
 
 TRIAL_TIMELINE = "trial"
-CLASS_COLOURS = {"axis": (255, 140, 0), "rim": (40, 170, 60), "interior": (150, 150, 150),
-                 "isolated": (150, 60, 200), "pair": (0, 150, 220), "surface": (90, 90, 90)}
+# the figures' class colours (paper Fig. 5), plus the classes without candidates
+CLASS_COLOURS = {**{name: tuple(round(255 * value) for value in rgb) for name, rgb in FIGURE_CLASS_COLOURS.items()},
+                 "interior": (150, 150, 150), "surface": (90, 90, 90)}
 OUTCOME_COLOURS = {"force_closure": (40, 170, 60), "no_force_closure": (230, 160, 0), "no_contact": (120, 120, 120),
                    "collision": (220, 40, 40), "error": (0, 0, 0)}
 
