@@ -29,13 +29,14 @@ def main(argv=None):
                       help="also write recording.rrd (open with `rerun`) and log.mcap into --out")
     plan.add_argument("--params", default=None,
                       help=f"params file (default: {PARAMS_FILE} if present, else built-in defaults)")
-    bench = commands.add_parser("bench", help="benchmark medial_axis + mat (vs voronoi_poles), classify + candidates "
-                                              "and grasp trials")
+    bench = commands.add_parser("bench", help="benchmark medial_axis + mat (vs voronoi_poles), classify + candidates, "
+                                              "grasp trials and the cost of recording them")
     bench.add_argument("--json", default=None, help="also write the figures to this JSON file")
     bench.add_argument("--sizes", default="20000,100000,200000", help="surface sample counts, comma-separated")
     bench.add_argument("--repeats", type=int, default=3, help="runs per case; the median is reported")
     bench.add_argument("--trials", type=int, default=100, help="grasp trials per hand in the trial table")
-    bench.add_argument("--only", choices=("medial", "symmetry", "trials"), default=None, help="run one table")
+    bench.add_argument("--only", choices=("medial", "symmetry", "trials", "recording"), default=None,
+                       help="run one table")
     hands = commands.add_parser("hands", help="render the built-in hands, or export one as URDF + spec")
     hands.add_argument("--render", metavar="DIR", help="write DIR/<hand>.png, open and closed on an object")
     hands.add_argument("--export", nargs=2, metavar=("HAND", "DIR"),

@@ -57,7 +57,7 @@ def _measure(surface, method, repeats):
 
 def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, trials=100, only=None, out=print):
     """Print (and optionally save) the benchmark tables (``only``: one of medial, symmetry,
-    trials); returns {table: rows}."""
+    trials, recording); returns {table: rows}."""
     tables = {}
     if only in (None, "medial"):
         tables["medial"] = run_medial_bench(sizes=sizes, repeats=repeats, out=out)
@@ -67,6 +67,9 @@ def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, trial
         out("")
     if only in (None, "trials"):
         tables["trials"] = run_trial_bench(trials=trials, out=out)
+        out("")
+    if only in (None, "recording"):
+        tables["recording"] = run_recording_bench(trials=trials, repeats=repeats, out=out)
     if json_path:
         text = json.dumps({"repeats": repeats, **tables}, indent=2).encode()
         atomic_write(json_path, lambda stream: stream.write(text))
@@ -192,4 +195,44 @@ def run_trial_bench(*, trials=100, out=print):
             f"{0.5 * serial:7.0f}x  "
             + ", ".join(f"{key} {value}" for key, value in counts.items()))
     out("paper: 0.5 s per trial (one core, 2011); target >= 100 trials/s per core")
+    return rows
+
+
+def run_recording_bench(*, trials=100, repeats=3, out=print):
+    """What recording costs against the work it records: per hand, ``trials`` MAT trials on the
+    duck on one core, then the median of ``repeats`` recordings of them (.rrd trial timeline and
+    MCAP ``/trials``); returns the rows."""
+    import tempfile
+    from pathlib import Path
+
+    from .recording import log_trials, mcap_log, rerun_recording
+    from .trials import simulate
+
+    surface, faces = trial_bench_surface()
+    axis = medial_axis(surface, **vars(MedialAxisParams()))
+    symmetry = classify(sphere_grid.build(reconstruct(surface, axis, **vars(MatParams()))), **vars(ClassifyParams()))
+    out(f"recording cost on the duck ({faces} triangles): {trials} MAT trials per hand, one core; "
+        f"recording = median of {repeats}")
+    out(f"{'hand':13} {'trials':>7} {'simulate s':>11} {'record s':>9} {'ratio':>7}")
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        for name, hand in HANDS.items():
+            table = generate(symmetry, hand).sample(trials, random_state=0).reset_index(drop=True)
+            start = time.perf_counter()
+            results, contacts = simulate(surface, table, [hand], spheres_per_object=len(table), baseline_trials=0,
+                                         workers=1)
+            simulated = time.perf_counter() - start
+            times = []
+            for _ in range(repeats):
+                start = time.perf_counter()
+                with rerun_recording(Path(folder) / "bench.rrd", recording_id="bench") as stream:
+                    log_trials(stream, "/duck", surface, hand, results, contacts)
+                with mcap_log(Path(folder) / "bench.mcap", "simulate") as log:
+                    log.trials(results)
+                times.append(time.perf_counter() - start)
+            recorded = float(np.median(times))
+            rows.append(dict(hand=name, trials=len(results), simulate_s=round(simulated, 3),
+                             record_s=round(recorded, 3), ratio=round(recorded / simulated, 3)))
+            out(f"{name:13} {len(results):7d} {simulated:11.2f} {recorded:9.3f} {100 * recorded / simulated:6.1f}%")
+    out("target: recording adds <= 20 % to a run")
     return rows

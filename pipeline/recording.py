@@ -134,7 +134,8 @@ def log_candidates(stream, root, candidates, *, length):
 def log_trials(stream, root, surface, hand, trials, contacts, *, settings=None):
     """One step of the ``trial`` timeline per row of ``trials`` (one hand's; the contacts'
     ``trial`` column indexes its rows): the hand's link boxes at approach, after retract and
-    closed, the contacts with normals and friction cones, epsilon and the outcome."""
+    closed, the contacts with normals and friction cones, epsilon and the outcome. Sent
+    column-wise, one call per entity for all trials."""
     import rerun as rr
     from scipy.spatial.transform import Rotation
 
@@ -142,50 +143,49 @@ def log_trials(stream, root, surface, hand, trials, contacts, *, settings=None):
     from .simulation import GraspWorld
 
     settings = settings or {}
-    world = GraspWorld(surface, hand, **settings)
-    cone_edges, mu = settings.get("cone_edges", 8), settings.get("mu", 0.5)
-    by_trial = dict(tuple(contacts.groupby("trial"))) if len(contacts) else {}
+    count, path = len(trials), f"{root}/trials/{hand.name}"
+    steps = [rr.TimeColumn(TRIAL_TIMELINE, sequence=np.arange(count))]
     base = trials[["base_x", "base_y", "base_z"]].to_numpy()
     quaternion = trials[["base_qx", "base_qy", "base_qz", "base_qw"]].to_numpy()
-    approach = vectors(trials, "approach")
-    names = list(hand.limits)
-    open_joints = hand.preshape()
-    scale = 0.1 * float(np.linalg.norm(np.ptp(surface.points, axis=0)))
+    placed = np.isfinite(base).all(axis=1) & np.isfinite(quaternion).all(axis=1)  # not an early error
+    colours = np.array([OUTCOME_COLOURS.get(str(outcome), (0, 0, 0)) for outcome in trials.outcome], np.uint8)
+    approach_start = base + trials.retract_m.to_numpy()[:, None] * vectors(trials, "approach")
+    world = GraspWorld(surface, hand, **settings)
     try:
-        for number, row in enumerate(trials.itertuples(index=False)):
-            stream.set_time(TRIAL_TIMELINE, sequence=number)
-            path = f"{root}/trials/{hand.name}"
-            colour = OUTCOME_COLOURS.get(str(row.outcome), (0, 0, 0))
-            if np.isfinite(base[number]).all():
-                closed = dict(zip(names, row.joints))
-                poses = (("approach", base[number] + row.retract_m * approach[number], open_joints),
-                         ("retracted", base[number], open_joints), ("closed", base[number], closed))
-                for name, position, joints in poses:
-                    centres, rotations, halves = world.link_boxes(position, quaternion[number], joints)
-                    stream.log(f"{path}/hand/{name}", rr.Boxes3D(
-                        centers=centres, half_sizes=halves, colors=colour,
-                        quaternions=Rotation.from_matrix(rotations).as_quat()))  # x y z w
-            else:  # an error before the hand was placed
-                for name in ("approach", "retracted", "closed"):
-                    stream.log(f"{path}/hand/{name}", rr.Clear(recursive=False))
-            points = by_trial.get(number)
-            if points is not None:
-                position = points[["x", "y", "z"]].to_numpy()
-                normal = points[["nx", "ny", "nz"]].to_numpy()
-                stream.log(f"{path}/contacts", rr.Points3D(position, colors=(230, 30, 30)))
-                stream.log(f"{path}/normals", rr.Arrows3D(origins=position, vectors=-0.3 * scale * normal))
-                edges = friction_cone(-normal, mu=mu, edges=cone_edges)  # (contacts, edges, 3), inward
-                tips = position[:, None] + 0.3 * scale * edges / np.linalg.norm(edges, axis=2, keepdims=True)
-                strips = np.stack([np.broadcast_to(position[:, None], tips.shape), tips], axis=2).reshape(-1, 2, 3)
-                stream.log(f"{path}/cones", rr.LineStrips3D(strips, colors=(250, 200, 0)))
-            else:
-                for name in ("contacts", "normals", "cones"):
-                    stream.log(f"{path}/{name}", rr.Clear(recursive=False))
-            stream.log(f"{path}/epsilon", rr.Scalars(float(row.epsilon)))
-            stream.log(f"{path}/outcome", rr.Scalars(float(OUTCOMES.index(str(row.outcome)))),
-                       rr.TextLog(f"{row.planner} {row.outcome} eps {row.epsilon:.4f}"))
+        open_joints = hand.preshape()
+        for name, positions in (("approach", approach_start), ("retracted", base), ("closed", base)):
+            boxes = [world.link_boxes(positions[number], quaternion[number],
+                                      dict(zip(hand.limits, trials.joints.iloc[number])) if name == "closed"
+                                      else open_joints) for number in np.flatnonzero(placed)]
+            links = len(world.boxes[2])
+            centres = np.concatenate([box[0] for box in boxes]) if boxes else np.zeros((0, 3))
+            rotations = np.concatenate([box[1] for box in boxes]) if boxes else np.zeros((0, 3, 3))
+            stream.send_columns(f"{path}/hand/{name}", indexes=steps, columns=rr.Boxes3D.columns(
+                centers=centres, half_sizes=np.tile(world.boxes[2], (len(boxes), 1)),
+                quaternions=Rotation.from_matrix(rotations).as_quat() if len(rotations) else np.zeros((0, 4)),
+                colors=np.repeat(colours[placed], links, axis=0)).partition(np.where(placed, links, 0)))
     finally:
         world.close()
+    contacts = contacts.sort_values("trial", kind="stable")
+    per_trial = np.bincount(contacts.trial.to_numpy(), minlength=count) if len(contacts) else np.zeros(count, int)
+    position, normal = contacts[["x", "y", "z"]].to_numpy(), contacts[["nx", "ny", "nz"]].to_numpy()
+    scale = 0.03 * float(np.linalg.norm(np.ptp(surface.points, axis=0)))
+    edges = settings.get("cone_edges", 8)
+    cone = friction_cone(-normal, mu=settings.get("mu", 0.5), edges=edges) if len(normal) else np.zeros((0, edges, 3))
+    tips = position[:, None] + scale * cone / np.linalg.norm(cone, axis=2, keepdims=True)
+    strips = np.stack([np.broadcast_to(position[:, None], tips.shape), tips], axis=2).reshape(-1, 2, 3)
+    stream.send_columns(f"{path}/contacts", indexes=steps, columns=rr.Points3D.columns(
+        positions=position, colors=np.tile([[230, 30, 30]], (len(position), 1))).partition(per_trial))
+    stream.send_columns(f"{path}/normals", indexes=steps, columns=rr.Arrows3D.columns(
+        origins=position, vectors=-scale * normal).partition(per_trial))
+    stream.send_columns(f"{path}/cones", indexes=steps, columns=rr.LineStrips3D.columns(
+        strips=strips).partition(per_trial * edges))
+    stream.send_columns(f"{path}/epsilon", indexes=steps, columns=rr.Scalars.columns(
+        scalars=trials.epsilon.to_numpy(float)))
+    stream.send_columns(f"{path}/outcome", indexes=steps, columns=[
+        *rr.Scalars.columns(scalars=[float(OUTCOMES.index(str(outcome))) for outcome in trials.outcome]),
+        *rr.TextLog.columns(text=[f"{planner} {outcome} eps {epsilon:.4f}" for planner, outcome, epsilon
+                                  in zip(trials.planner, trials.outcome, trials.epsilon)])])
 
 
 def send_blueprint(stream, root):
