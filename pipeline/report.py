@@ -67,9 +67,10 @@ def results(trials, runs):
     return frame.reset_index()
 
 
-def metrics(trials):
-    """Headline numbers for ``dvc metrics show``: force-closure rate and mean epsilon of each
-    planner overall, per hand and per scale, and in how many runs MAT beats the baseline."""
+def metrics(trials, table):
+    """Headline numbers for ``dvc metrics show``: force-closure rate of each planner overall, per
+    hand and per scale (from ``trials``), and in how many runs MAT beats the baseline (from
+    :func:`results`' ``table``)."""
     def rates(frame):
         closed = frame.outcome == "force_closure"
         return {"force_closure_rate": round(float(closed.mean()), 4) if len(frame) else None,
@@ -80,7 +81,6 @@ def metrics(trials):
         out[label] = {str(value): {planner: rates(group[group.planner == planner])["force_closure_rate"]
                                    for planner in ("mat", "baseline")}
                       for value, group in trials.groupby(key, sort=True)}
-    table = results(trials, sorted(set(map(tuple, trials[KEYS].itertuples(index=False)))))
     compared = table.dropna(subset=["mat_force_closure_pct", "baseline_force_closure_pct"])
     out["runs_compared"] = int(len(compared))
     out["runs_mat_above_baseline"] = int((compared.mat_force_closure_pct > compared.baseline_force_closure_pct).sum())

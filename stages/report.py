@@ -38,7 +38,7 @@ def main(argv=None):
         timings += [json.loads(path.read_text()) for path in sorted(folder.rglob("timing/*.json"))]
     trials = report.combine(tables)
     table = report.results(trials, runs)
-    metrics = report.metrics(trials)
+    metrics = report.metrics(trials, table)
     force_closure, epsilon = report.plot_tables(table, trials, bins=config.report.epsilon_bins)
 
     write_table(out / "trials.parquet", trials)

@@ -46,7 +46,7 @@ def test_results_count_every_run_by_hand(trials):
 
 
 def test_metrics_overall_per_hand_and_wins(trials):
-    metrics = report.metrics(trials)
+    metrics = report.metrics(trials, report.results(trials, RUNS))
     assert metrics["mat"] == {"force_closure_rate": 0.5, "trials": 6}
     assert metrics["baseline"] == {"force_closure_rate": 0.5, "trials": 6}
     assert metrics["per_scale"]["1.0"] == {"mat": 0.75, "baseline": 0.25}
@@ -60,7 +60,7 @@ def test_markdown_has_a_row_per_run_and_names_the_losers(trials):
                                    {"stage": "sample", "seconds": 2.0}])
     assert timings.stage.tolist() == ["sample", "simulate"] and timings.total_s.tolist() == [3.0, 3.0]
     assert timings.process_total_s.tolist() == [4.5, 3.0]  # a record without process time counts its work
-    text = report.markdown(table, report.metrics(trials), timings, settings="protocol")
+    text = report.markdown(table, report.metrics(trials, table), timings, settings="protocol")
     assert "| mug | 75.0 | 0.0 |" in text        # Table I: ARMAR-III x1, x0.5
     assert "| ball | - |  |" in text              # no candidates: no rate, not 0 %
     assert "| mug | 25.0 | 100.0 |" in text       # the baseline's Table I
