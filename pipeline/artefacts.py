@@ -31,6 +31,7 @@ Every file also holds ``schema`` (:data:`SCHEMA_VERSION`), ``kind`` and ``key``:
 hash of the stage's inputs and params, so a batch runner can tell a result is reusable.
 """
 
+import contextlib
 import dataclasses
 import hashlib
 import json
@@ -55,21 +56,28 @@ def content_key(stage, params, *parents):
     return hashlib.sha256(blob.encode()).hexdigest()[:20]
 
 
-def atomic_write(path, write):
-    """Call ``write(file_object)`` on a temp file beside ``path``, then rename it into place.
+@contextlib.contextmanager
+def atomic_path(path):
+    """Yield a temp path beside ``path``; rename it to ``path`` when the block succeeds.
 
     A crash or error leaves no file under ``path`` (nor the temp file).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     handle, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(handle)
     try:
-        with os.fdopen(handle, "wb") as stream:
-            write(stream)
+        yield tmp
         os.replace(tmp, path)
-    except BaseException:
+    finally:
         Path(tmp).unlink(missing_ok=True)
-        raise
+
+
+def atomic_write(path, write):
+    """Call ``write(file_object)`` on a temp file beside ``path``, then rename it into place
+    (see :func:`atomic_path`)."""
+    with atomic_path(path) as tmp, open(tmp, "wb") as stream:
+        write(stream)
 
 
 def write_table(path, table):

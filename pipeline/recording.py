@@ -17,13 +17,11 @@ run never leaves a truncated file under the final name.
 
 import contextlib
 import json
-import os
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
+from .artefacts import atomic_path
 from .candidates import vectors
 from .figures import CLASS_COLOURS as FIGURE_CLASS_COLOURS
 from .figures import diameter_colours
@@ -38,20 +36,6 @@ OUTCOME_COLOURS = {"force_closure": (40, 170, 60), "no_force_closure": (230, 160
 
 
 @contextlib.contextmanager
-def _atomic_path(path):
-    """Yield a temp path beside ``path``; rename it to ``path`` if the block succeeds, else delete it."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(handle)
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    finally:
-        Path(tmp).unlink(missing_ok=True)
-
-
-@contextlib.contextmanager
 def rerun_recording(path, *, recording_id, application_id="medial-grasp"):
     """A ``rerun.RecordingStream`` saving to ``path`` (.rrd), renamed into place on success.
 
@@ -60,7 +44,7 @@ def rerun_recording(path, *, recording_id, application_id="medial-grasp"):
     """
     import rerun as rr
 
-    with _atomic_path(path) as tmp:
+    with atomic_path(path) as tmp:
         stream = rr.RecordingStream(application_id, recording_id=recording_id, send_properties=False)
         stream.set_log_time_enabled(False)  # no wall-clock timeline: the trial index is the time
         stream.save(tmp)
@@ -251,7 +235,7 @@ def mcap_log(path, stage):
     renamed into place on success."""
     from mcap.writer import Writer
 
-    with _atomic_path(path) as tmp, open(tmp, "wb") as stream:
+    with atomic_path(path) as tmp, open(tmp, "wb") as stream:
         writer = Writer(stream)
         writer.start(profile="", library="medial-grasp")
         log = McapLog(writer)
@@ -261,13 +245,6 @@ def mcap_log(path, stage):
         log.log("/timing", {"stage": stage, "seconds": round(time.perf_counter() - start, 3)})
         log.log("/stage", {"stage": stage, "event": "end"})
         writer.finish()
-
-
-def file_hash(path):
-    """sha256 of a file's bytes (hex)."""
-    import hashlib
-
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def record_chain(rrd_path, mcap_path, artefacts, summary_dict, *, name, hands, settings=None):
