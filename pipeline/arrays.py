@@ -60,3 +60,8 @@ def group_rows(rows):
     keys = rows.view(np.dtype((np.void, rows.itemsize * rows.shape[1]))).ravel()
     _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
     return first, inverse.ravel()
+
+
+def vectors(table, prefix):
+    """The ``(n, 3)`` array of a table's columns ``{prefix}_x, _y, _z`` (prefix grasp, approach or orient)."""
+    return table[[f"{prefix}_x", f"{prefix}_y", f"{prefix}_z"]].to_numpy()

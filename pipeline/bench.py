@@ -14,7 +14,8 @@ import pandas as pd
 
 from . import sphere_grid
 from .artefacts import atomic_write
-from .candidates import generate, generate_for_hands, vectors
+from .arrays import vectors
+from .candidates import generate, generate_for_hands
 from .hands import HANDS
 from .mat import reconstruct
 from .medial_axis import medial_axis
@@ -205,7 +206,8 @@ def run_recording_bench(*, trials=100, repeats=3, out=print):
     import tempfile
     from pathlib import Path
 
-    from .recording import log_trials, mcap_log, rerun_recording
+    from .logbook import mcap_log
+    from .recording import log_trials, rerun_recording
     from .trials import simulate
 
     surface, faces = trial_bench_surface()

@@ -102,11 +102,6 @@ def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, 
     return table.sort_values("id", kind="stable").reset_index(drop=True)
 
 
-def vectors(table, prefix):
-    """The ``(n, 3)`` array of columns ``{prefix}_x, _y, _z`` (prefix grasp, approach or orient)."""
-    return table[[f"{prefix}_x", f"{prefix}_y", f"{prefix}_z"]].to_numpy()
-
-
 def generate_for_hands(symmetry, hands, *, approach_directions=4, flipped_candidates=True):
     """The ``candidates`` stage as a pure function: one table, a block of rows per hand.
 

@@ -7,6 +7,8 @@ import json
 import os
 import sys
 import time
+import warnings
+from pathlib import Path
 
 from .errors import PipelineError
 from .params import load_params
@@ -37,29 +39,102 @@ def params(path=PARAMS_FILE):
 
 
 def stage_args(description, *names, argv=None):
-    """Parse a stage's positional arguments (input and output paths, from dvc.yaml's cmd) and
-    its optional ``--timing PATH`` (see :func:`timed`)."""
+    """Parse a stage's positional arguments (input and output paths, from dvc.yaml's cmd) and its
+    optional log paths: ``--timing T.json``, ``--log L.mcap``, ``--rrd R.rrd`` with
+    ``--recording-id ID`` (see :func:`stage_run`)."""
     parser = argparse.ArgumentParser(description=description)
     for name in names:
         parser.add_argument(name)
     parser.add_argument("--timing", help="write the stage's wall time here (JSON) when it succeeds")
+    parser.add_argument("--log", help="write the stage's MCAP log here (params, hashes, counts, timings, warnings)")
+    parser.add_argument("--rrd", help="write the stage's rerun recording here (empty if params `record` is false)")
+    parser.add_argument("--recording-id", default="object",
+                        help="rerun recording id and entity root: the .rrd files of one id merge in the viewer")
     return parser.parse_args(argv)
 
 
+class StageRun:
+    """What a running stage reports: counts and warnings for its MCAP log, and entities for its
+    rerun recording (see :func:`stage_run`)."""
+
+    def __init__(self, stage, log, rrd, recording_id, record, outputs):
+        self.stage, self.log, self.rrd, self.recording_id, self.enabled = stage, log, rrd, recording_id, record
+        self.outputs = list(outputs)
+        """Files the stage wrote, hashed into the log at the end (a stage may add to them)."""
+        self.counts, self.record_seconds = {}, 0.0
+
+    def count(self, **counts):
+        """Add sizes of what the stage made (logged on ``/counts`` at the end)."""
+        self.counts.update(counts)
+
+    def warn(self, message):
+        """A warning: on stderr now, and on the log's ``/warning`` topic."""
+        print(f"warning: {message}", file=sys.stderr)
+        if self.log:
+            self.log.log("/warning", {"message": message})
+
+    def record(self, draw):
+        """Write the stage's recording: ``draw(stream, root)`` logs the entities under ``root``.
+
+        rerun is imported only here (0.6 s a process). With ``record`` off the .rrd is written
+        empty, so that DVC still finds the declared output.
+        """
+        if not self.rrd:
+            return
+        from .artefacts import atomic_write
+
+        start = time.perf_counter()
+        if not self.enabled:
+            atomic_write(self.rrd, lambda stream: None)
+            return
+        from .recording import rerun_recording, send_blueprint
+
+        root = f"/{self.recording_id}"
+        with rerun_recording(self.rrd, recording_id=self.recording_id) as stream:
+            send_blueprint(stream, root)
+            draw(stream, root)
+        self.record_seconds += time.perf_counter() - start
+
+
 @contextlib.contextmanager
-def timed(path, stage):
-    """Time the block; on success write ``{"stage", "seconds", "process_seconds"}`` to ``path`` (if
-    given), atomically: the block's wall time, and the process's since it started (imports
-    included). The report's per-stage timings come from these files."""
+def stage_run(args, stage, *, params=None, inputs=(), outputs=(), record=True):
+    """Run a stage's block and log it; yields a :class:`StageRun`.
+
+    On success, writes (each only if its path was given in ``args``) ``--timing`` as JSON
+    ``{"stage", "seconds", "process_seconds", "record_seconds"}`` (the block's wall time, the
+    process's since it started, imports included, and the part spent recording), and ``--log``:
+    an MCAP log of the stage's start, ``params`` (dict), the path, size and SHA-256 of each of
+    ``inputs`` and ``outputs``, the counts, warnings (Python warnings raised in the block
+    included), the timing and the end. Every file is renamed into place only when complete, so
+    a failed stage leaves none of them. ``record`` (params ``record``) turns the recording off.
+    """
     from .artefacts import atomic_write
+    from .logbook import mcap_log
 
     start = time.perf_counter()
-    yield
-    if path:
+    with contextlib.ExitStack() as stack:
+        log = stack.enter_context(mcap_log(args.log, stage)) if args.log else None
+        run = StageRun(stage, log, args.rrd, args.recording_id, record, outputs)
+        if log:
+            log.log("/params", params or {})
+            for path in inputs:
+                log.artefact("input", path)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("default")
+            yield run
+        for warning in caught:
+            run.warn(f"{warning.category.__name__}: {warning.message} ({Path(warning.filename).name}:{warning.lineno})")
         seconds = time.perf_counter() - start
-        process = max(_process_age(), seconds)
-        record = {"stage": stage, "seconds": round(seconds, 3), "process_seconds": round(process, 3)}
-        atomic_write(path, lambda stream: stream.write(json.dumps(record).encode()))
+        timing = {"stage": stage, "seconds": round(seconds, 3),
+                  "process_seconds": round(max(_process_age(), seconds), 3),
+                  "record_seconds": round(run.record_seconds, 3)}
+        if log:
+            for path in run.outputs:
+                log.artefact("output", path)
+            log.log("/counts", run.counts)
+            log.log("/timing", timing)
+        if args.timing:
+            atomic_write(args.timing, lambda stream: stream.write(json.dumps(timing).encode()))
 
 
 def _process_age():

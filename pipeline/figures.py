@@ -16,7 +16,7 @@ axis, green from a local symmetry plane, magenta P_o at their ends) and Fig. 7.
 
 import numpy as np
 
-from .candidates import vectors
+from .arrays import vectors
 from .errors import BadInputError
 
 DPI = 100

@@ -225,6 +225,9 @@ class Params:
     scales: tuple = (1.0,)
     """Sizes each object runs at, as factors of its own (Table I: 1.0 and 0.5); kept as written,
     since ``data/<object>/<scale>/`` is named by DVC from the same text."""
+    record: bool = True
+    """Write each stage's rerun recording (``logs/**/*.rrd``); off: the .rrd files are left empty.
+    The MCAP logs are always written."""
     sample: SampleParams = field(default_factory=SampleParams)
     medial_axis: MedialAxisParams = field(default_factory=MedialAxisParams)
     mat: MatParams = field(default_factory=MatParams)
@@ -300,6 +303,9 @@ def load_params(path="params.yaml"):
             isinstance(scale, (int, float)) and not isinstance(scale, bool) and math.isfinite(scale) and scale > 0
             for scale in scales) and len(set(scales)) == len(scales)):
         raise BadParamsError(f"{path}: scales must be a list of distinct positive numbers, got {scales!r}")
+    record = raw.get("record", True)
+    if type(record) is not bool:
+        raise BadParamsError(f"{path}: record must be true or false, got {record!r}")
     sections = {name: section_from_mapping(cls, raw.get(name), section=name, source=str(path))
                 for name, cls in SECTIONS.items()}
-    return Params(seed=seed, objects=objects, scales=tuple(scales), **sections)
+    return Params(seed=seed, objects=objects, scales=tuple(scales), record=record, **sections)

@@ -1,5 +1,6 @@
-"""Recordings of what the planner did: rerun ``.rrd`` files for the 3D viewer and MCAP logs of
-typed JSON messages. Only the commands and stages record; the algorithms return the values shown.
+"""Recordings of what the planner did: rerun ``.rrd`` files for the 3D viewer (the MCAP logs
+are :mod:`pipeline.logbook`). Only the commands and stages record; the algorithms return the
+values shown.
 
 rerun entities (metres, the object frame; ``root`` is ``/<object>``): ``surface/mesh``,
 ``surface/samples`` (with ``surface/normals``), ``spheres`` (every medial sphere as an ellipsoid
@@ -9,23 +10,21 @@ candidates), ``candidates/<hand>/approach`` (arrows ending at P_g along P_d) and
 ``candidates/<hand>/orient`` (P_o marks), and on the ``trial`` timeline, one step per trial,
 ``trials/<hand>/hand/{approach,retracted,closed}`` (the hand's link boxes),
 ``trials/<hand>/contacts`` with ``normals`` and ``cones``, ``trials/<hand>/epsilon`` and
-``trials/<hand>/outcome`` (scalars; the outcome as its index in :data:`OUTCOMES`).
+``trials/<hand>/outcome`` (scalars; the outcome as its index in ``simulation.OUTCOMES``).
 
 Files are written beside their final name and renamed into place when complete: an interrupted
 run never leaves a truncated file under the final name.
 """
 
 import contextlib
-import json
-import time
 
 import numpy as np
 
 from .artefacts import atomic_path
-from .candidates import vectors
+from .arrays import vectors
 from .figures import CLASS_COLOURS as FIGURE_CLASS_COLOURS
 from .figures import diameter_colours
-from .simulation import OUTCOMES
+from .logbook import mcap_log
 
 TRIAL_TIMELINE = "trial"
 # the figures' class colours (paper Fig. 5), plus the classes without candidates
@@ -100,11 +99,16 @@ def log_symmetry(stream, root, symmetry, *, with_candidates=None):
     stream.log(f"{root}/symmetry/cog", rr.Points3D(symmetry.cog[chosen], colors=(0, 0, 0)), static=True)
 
 
-def log_candidates(stream, root, candidates, *, length):
-    """Per hand: the candidates' approach as arrows of ``length`` (m) ending at P_g along P_d,
-    coloured by sphere class, and P_o as a short mark at P_g."""
+def log_candidates(stream, root, candidates, *, length=None):
+    """Per hand: the candidates' approach as arrows of ``length`` (m; default 5 % of the grasp
+    points' bounding-box diagonal) ending at P_g along P_d, coloured by sphere class, and P_o as
+    a short mark at P_g."""
     import rerun as rr
 
+    if length is None:
+        grasp = vectors(candidates, "grasp")
+        length = 0.05 * float(np.linalg.norm(np.ptp(grasp, axis=0))) if len(grasp) > 1 else 0.01
+        length = length or 0.01
     for hand, rows in candidates.groupby("hand", sort=True):
         grasp, approach, orient = (vectors(rows, prefix) for prefix in ("grasp", "approach", "orient"))
         colours = np.array([CLASS_COLOURS.get(str(name), (0, 0, 0)) for name in rows.sphere_class], np.uint8)
@@ -124,7 +128,7 @@ def log_trials(stream, root, surface, hand, trials, contacts, *, settings=None):
     from scipy.spatial.transform import Rotation
 
     from .quality import friction_cone
-    from .simulation import GraspWorld
+    from .simulation import OUTCOMES, GraspWorld
 
     settings = settings or {}
     count, path = len(trials), f"{root}/trials/{hand.name}"
@@ -183,70 +187,6 @@ def send_blueprint(stream, root):
         column_shares=[3, 1])))
 
 
-class McapLog:
-    """MCAP file of JSON messages, one channel per topic, each with a JSON schema.
-
-    Topics: ``/stage`` (start, end), ``/params``, ``/artefacts`` (path and hash of inputs and
-    outputs), ``/counts``, ``/timing``, ``/warning`` and ``/trials`` (one message per trial).
-    """
-
-    SCHEMAS = {
-        "/stage": {"type": "object", "properties": {"stage": {"type": "string"}, "event": {"type": "string"}}},
-        "/params": {"type": "object"},
-        "/artefacts": {"type": "object", "properties": {"role": {"type": "string"}, "path": {"type": "string"},
-                                                        "sha256": {"type": "string"}}},
-        "/counts": {"type": "object"},
-        "/timing": {"type": "object", "properties": {"stage": {"type": "string"}, "seconds": {"type": "number"}}},
-        "/warning": {"type": "object", "properties": {"message": {"type": "string"}}},
-        "/trials": {"type": "object"},
-    }
-
-    def __init__(self, writer):
-        self.writer, self.channels = writer, {}
-
-    def log(self, topic, message):
-        """Write ``message`` (a JSON-able dict) on ``topic``, stamped with the wall clock."""
-        if topic not in self.channels:
-            schema = self.writer.register_schema(name=topic.strip("/"), encoding="jsonschema",
-                                                 data=json.dumps(self.SCHEMAS[topic]).encode())
-            self.channels[topic] = self.writer.register_channel(topic=topic, message_encoding="json",
-                                                                schema_id=schema)
-        now = time.time_ns()
-        self.writer.add_message(self.channels[topic], log_time=now, publish_time=now,
-                                data=json.dumps(message, default=_plain).encode())
-
-    def trials(self, trials):
-        """One ``/trials`` message per row, every column (joints as a list)."""
-        for row in trials.to_dict(orient="records"):
-            self.log("/trials", row)
-
-
-def _plain(value):
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return str(value)
-
-
-@contextlib.contextmanager
-def mcap_log(path, stage):
-    """An :class:`McapLog` writing to ``path`` (.mcap), with the stage's start and end messages;
-    renamed into place on success."""
-    from mcap.writer import Writer
-
-    with atomic_path(path) as tmp, open(tmp, "wb") as stream:
-        writer = Writer(stream)
-        writer.start(profile="", library="medial-grasp")
-        log = McapLog(writer)
-        log.log("/stage", {"stage": stage, "event": "start"})
-        start = time.perf_counter()
-        yield log
-        log.log("/timing", {"stage": stage, "seconds": round(time.perf_counter() - start, 3)})
-        log.log("/stage", {"stage": stage, "event": "end"})
-        writer.finish()
-
-
 def record_chain(rrd_path, mcap_path, artefacts, summary_dict, *, name, hands, settings=None):
     """Record a chain run (:func:`pipeline.plan.run_chain`'s artefacts) as one .rrd and one .mcap.
 
@@ -269,7 +209,7 @@ def record_chain(rrd_path, mcap_path, artefacts, summary_dict, *, name, hands, s
         log_surface(stream, root, surface)
         log_spheres(stream, root, artefacts["mat"])
         log_symmetry(stream, root, artefacts["classify"], with_candidates=np.unique(candidates.sphere_index))
-        log_candidates(stream, root, candidates, length=0.05 * float(np.linalg.norm(np.ptp(surface.points, axis=0))))
+        log_candidates(stream, root, candidates)
         if "trials" in artefacts:
             trials, contacts = artefacts["trials"], artefacts["contacts"]
             for hand in hands:
@@ -282,7 +222,7 @@ def record_chain(rrd_path, mcap_path, artefacts, summary_dict, *, name, hands, s
                             "seed": summary_dict["seed"], "hands": [hand.name for hand in hands], **(settings or {})})
         log.log("/counts", {**summary_dict["counts"], "classes": summary_dict["classes"],
                             "candidates": summary_dict["candidates"]})
-        for stage, seconds in summary_dict["timings_s"].items():
+        for stage, seconds in summary_dict["timings_s"].items():  # the chain's stages, one process
             log.log("/timing", {"stage": stage, "seconds": seconds})
         if not len(candidates):
             log.log("/warning", {"message": f"{name}: no candidate grasp (no sphere of the reduced set fits a hand)"})

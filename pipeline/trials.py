@@ -30,7 +30,7 @@ import os
 import numpy as np
 import pandas as pd
 
-from .candidates import vectors
+from .arrays import vectors
 from .simulation import OUTCOMES, run_chunk, start_worker, stop_worker
 
 CHUNK = 32

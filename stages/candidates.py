@@ -1,11 +1,11 @@
-"""Stage ``candidates``: python -m stages.candidates SYMMETRY.npz HAND OUT.parquet [--timing T.json]
+"""Stage ``candidates``: python -m stages.candidates SYMMETRY.npz HAND OUT.parquet [--timing T.json] [--log L.mcap]
 
 HAND is a built-in hand name or a hand spec file (one entry of params.yaml ``candidates.hands``).
 """
 
 from pipeline.artefacts import write_table
 from pipeline.candidates import generate_for_hands
-from pipeline.cli import one_line_errors, params, stage_args, timed
+from pipeline.cli import one_line_errors, params, stage_args, stage_run
 from pipeline.hands import get_hand
 from pipeline.symmetry import Symmetry
 
@@ -13,14 +13,19 @@ from pipeline.symmetry import Symmetry
 @one_line_errors
 def main(argv=None):
     args = stage_args(__doc__, "symmetry", "hand", "out", argv=argv)
-    config = params().candidates
-    with timed(args.timing, "candidates"):
+    config = params()
+    used = {"hand": args.hand, "approach_directions": config.candidates.approach_directions,
+            "flipped_candidates": config.candidates.flipped_candidates}
+    with stage_run(args, "candidates", params=used, inputs=[args.symmetry], outputs=[args.out]) as run:
         table = generate_for_hands(Symmetry.load(args.symmetry), [get_hand(args.hand)],
-                                   approach_directions=config.approach_directions,
-                                   flipped_candidates=config.flipped_candidates)
+                                   approach_directions=used["approach_directions"],
+                                   flipped_candidates=used["flipped_candidates"])
         write_table(args.out, table)
-    print(f"candidates {args.out}: {len(table)} for {args.hand}, "
-          f"on {table.sphere_index.nunique()} spheres")
+        run.count(candidates=len(table), spheres=int(table.sphere_index.nunique()),
+                  **{f"on_{name}": int(count) for name, count in table.sphere_class.value_counts().items()})
+        if not len(table):
+            run.warn(f"{args.out}: no candidate grasp for {args.hand} (no sphere of the reduced set fits the hand)")
+    print(f"candidates {args.out}: {len(table)} for {args.hand}, on {table.sphere_index.nunique()} spheres")
 
 
 if __name__ == "__main__":

@@ -1,18 +1,20 @@
-"""Stage ``medial_axis``: python -m stages.medial_axis SURFACE.npz OUT.npz"""
+"""Stage ``medial_axis``: python -m stages.medial_axis SURFACE.npz OUT.npz [--timing T.json] [--log L.mcap]"""
 
 import dataclasses
 
 from pipeline.artefacts import SurfaceSamples
-from pipeline.cli import one_line_errors, params, stage_args, timed
+from pipeline.cli import one_line_errors, params, stage_args, stage_run
 from pipeline.medial_axis import medial_axis
 
 
 @one_line_errors
 def main(argv=None):
     args = stage_args(__doc__, "surface", "out", argv=argv)
-    with timed(args.timing, "medial_axis"):
-        axis = medial_axis(SurfaceSamples.load(args.surface), **dataclasses.asdict(params().medial_axis))
+    config = dataclasses.asdict(params().medial_axis)
+    with stage_run(args, "medial_axis", params=config, inputs=[args.surface], outputs=[args.out]) as run:
+        axis = medial_axis(SurfaceSamples.load(args.surface), **config)
         axis.save(args.out)
+        run.count(balls=len(axis.radii))
     print(f"medial_axis {args.out}: {len(axis.radii)} balls ({axis.method})")
 
 

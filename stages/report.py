@@ -1,15 +1,16 @@
-"""Stage ``report``: python -m stages.report DATA_DIR OUT_DIR
+"""Stage ``report``: python -m stages.report DATA_DIR OUT_DIR [--log L.mcap]
 
 Reads ``DATA_DIR/<object>/<scale>/<hand>/trials.parquet`` of every object, scale and hand in
 params.yaml and every ``timing/*.json`` beside the artefacts; writes into OUT_DIR ``report.md``,
 ``trials.parquet`` (every trial), ``metrics.json``, ``plots/*.csv`` and ``figures/*.png``.
 """
 
+import dataclasses
 import io
 import json
 from pathlib import Path
 
-from pipeline.cli import one_line_errors, params, stage_args
+from pipeline.cli import one_line_errors, params, stage_args, stage_run
 
 
 def run_dir(data, name, scale, hand=None):
@@ -36,23 +37,30 @@ def main(argv=None):
         tables[(name, scale, hand)] = read_table(path)
     for folder in {run_dir(args.data, name, scale) for name, scale, _ in runs}:
         timings += [json.loads(path.read_text()) for path in sorted(folder.rglob("timing/*.json"))]
-    trials = report.combine(tables)
-    table = report.results(trials, runs)
-    metrics = report.metrics(trials, table)
-    force_closure, epsilon = report.plot_tables(table, trials, bins=config.report.epsilon_bins)
+    used = {"seed": config.seed, "objects": list(config.objects), "scales": list(config.scales),
+            "hands": list(config.candidates.hands), **dataclasses.asdict(config.report)}
+    inputs = [run_dir(args.data, *run) / "trials.parquet" for run in runs]
+    with stage_run(args, "report", params=used, inputs=inputs) as run:
+        trials = report.combine(tables)
+        table = report.results(trials, runs)
+        metrics = report.metrics(trials, table)
+        force_closure, epsilon = report.plot_tables(table, trials, bins=config.report.epsilon_bins)
 
-    write_table(out / "trials.parquet", trials)
-    for planner, frame in force_closure.items():
-        atomic_write(out / "plots" / f"force_closure_{planner}.csv", lambda s, f=frame: f.to_csv(s, index=False))
-    atomic_write(out / "plots" / "epsilon.csv", lambda stream: epsilon.to_csv(stream, index=False))
-    atomic_write(out / "metrics.json", lambda stream: stream.write(json.dumps(metrics, indent=2).encode()))
-    figures = write_figures(args.data, out, config, trials)
-    settings = (f"Protocol: {config.simulate.spheres_per_object} random spheres of the reduced set per object, "
-                f"scale and hand, all their candidates tried, and as many surface-normal baseline trials; "
-                f"mu = {config.simulate.mu:g}, {config.simulate.cone_edges} cone edges, seed {config.seed}. "
-                f"Every trial: `trials.parquet` (pandas: `pd.read_parquet`).")
-    text = report.markdown(table, metrics, report.timing_table(timings), figures=figures, settings=settings)
-    atomic_write(out / "report.md", lambda stream: stream.write(text.encode()))
+        write_table(out / "trials.parquet", trials)
+        for planner, frame in force_closure.items():
+            atomic_write(out / "plots" / f"force_closure_{planner}.csv", lambda s, f=frame: f.to_csv(s, index=False))
+        atomic_write(out / "plots" / "epsilon.csv", lambda stream: epsilon.to_csv(stream, index=False))
+        atomic_write(out / "metrics.json", lambda stream: stream.write(json.dumps(metrics, indent=2).encode()))
+        figures = write_figures(args.data, out, config, trials)
+        settings = (f"Protocol: {config.simulate.spheres_per_object} random spheres of the reduced set per object, "
+                    f"scale and hand, all their candidates tried, and as many surface-normal baseline trials; "
+                    f"mu = {config.simulate.mu:g}, {config.simulate.cone_edges} cone edges, seed {config.seed}. "
+                    f"Every trial: `trials.parquet` (pandas: `pd.read_parquet`).")
+        text = report.markdown(table, metrics, report.timing_table(timings), figures=figures, settings=settings)
+        atomic_write(out / "report.md", lambda stream: stream.write(text.encode()))
+        run.count(trials=len(trials), runs=len(runs), figures=len(figures))
+        run.outputs += [out / name for name in ("trials.parquet", "metrics.json", "report.md")]
+        run.outputs += sorted((out / "plots").glob("*.csv")) + [out / path for _, path in figures]
     print(f"report {out / 'report.md'}: {len(trials)} trials in {len(runs)} runs; MAT force closure "
           f"{100 * (metrics['mat']['force_closure_rate'] or 0):.1f} % vs baseline "
           f"{100 * (metrics['baseline']['force_closure_rate'] or 0):.1f} %; MAT above the baseline in "

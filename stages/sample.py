@@ -1,4 +1,4 @@
-"""Stage ``sample``: python -m stages.sample OBJECT SCALE OUT.npz [--timing T.json]
+"""Stage ``sample``: python -m stages.sample OBJECT SCALE OUT.npz [--timing T.json] [--log L.mcap]
 
 OBJECT names an entry of params.yaml ``objects``; SCALE (one of ``scales``) multiplies its size.
 """
@@ -7,7 +7,7 @@ import dataclasses
 
 import numpy as np
 
-from pipeline.cli import one_line_errors, params, stage_args, timed
+from pipeline.cli import one_line_errors, params, stage_args, stage_run
 from pipeline.errors import BadParamsError
 from pipeline.objects import parse_spec, source_key
 from pipeline.sampling import sample_object
@@ -19,12 +19,16 @@ def main(argv=None):
     config = params()
     if args.object not in config.objects:
         raise BadParamsError(f"params.yaml: no object named {args.object!r} under 'objects'")
-    with timed(args.timing, "sample"):
+    used = {"seed": config.seed, "object": args.object, "spec": config.objects[args.object],
+            "scale": float(args.scale), **dataclasses.asdict(config.sample)}
+    with stage_run(args, "sample", params=used, outputs=[args.out]) as run:
         source, scale, shape = parse_spec(args.object, config.objects[args.object])
         surface = sample_object(source, scale=scale * float(args.scale), shape=shape,
                                 rng=np.random.default_rng(config.seed), source_key=source_key(source, shape),
                                 **dataclasses.asdict(config.sample))
         surface.save(args.out)
+        run.count(samples=len(surface.points), spacing_m=surface.spacing, mesh_vertices=len(surface.vertices),
+                  mesh_faces=len(surface.faces))
     print(f"sample {args.object} x{args.scale}: {len(surface.points)} samples, "
           f"spacing {surface.spacing * 1e3:.3f} mm")
 

@@ -1,7 +1,13 @@
 """Stage ``simulate``: python -m stages.simulate SURFACE.npz CANDIDATES.parquet HAND TRIALS.parquet CONTACTS.parquet
-[--timing T.json]"""
+[--timing T.json] [--log L.mcap] [--rrd R.rrd --recording-id ID]
 
-from pipeline.cli import one_line_errors, params, progress_bar, stage_args, timed
+The recording shows every candidate (approach arrows, P_o) and each trial on its own step of the
+``trial`` timeline; the log holds one ``/trials`` message per trial.
+"""
+
+import dataclasses
+
+from pipeline.cli import one_line_errors, params, progress_bar, stage_args, stage_run
 
 
 @one_line_errors
@@ -9,11 +15,14 @@ def main(argv=None):
     # imported here: trial workers are spawned and re-import this module, and need none of it
     from pipeline.artefacts import SurfaceSamples, read_table, write_table
     from pipeline.hands import get_hand
+    from pipeline.recording import log_candidates, log_trials
     from pipeline.trials import default_workers, simulate, summary
 
     args = stage_args(__doc__, "surface", "candidates", "hand", "trials", "contacts", argv=argv)
     config = params()
-    with timed(args.timing, "simulate"):
+    used = {"seed": config.seed, "hand": args.hand, **dataclasses.asdict(config.simulate)}
+    with stage_run(args, "simulate", params=used, inputs=[args.surface, args.candidates],
+                   outputs=[args.trials, args.contacts], record=config.record) as run:
         hand = get_hand(args.hand)
         surface, candidates = SurfaceSamples.load(args.surface), read_table(args.candidates)
         with progress_bar(f"simulate {args.trials}") as progress:
@@ -24,7 +33,19 @@ def main(argv=None):
                                         settings=config.simulate.world_settings(), progress=progress)
         write_table(args.contacts, contacts)
         write_table(args.trials, trials)
-    result = summary(trials)
+        result = summary(trials)
+        run.count(rows=len(trials), contacts=len(contacts),
+                  **{key: value for key, value in result.items() if key != "per_hand"})  # MAT, then baseline
+        if not len(candidates):
+            run.warn(f"{args.candidates}: no candidates, so no trials for {args.hand}")
+        if run.log:
+            run.log.trials(trials)
+
+        def draw(stream, root):
+            log_candidates(stream, root, candidates)
+            log_trials(stream, root, surface, hand, trials, contacts, settings=config.simulate.world_settings())
+
+        run.record(draw)
     print(f"simulate {args.trials}: {result['trials']} MAT trials, force closure "
           f"{result['force_closure_rate']:.1%} (baseline {result['baseline']['force_closure_rate']:.1%} "
           f"of {result['baseline']['trials']})")

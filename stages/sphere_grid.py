@@ -1,18 +1,20 @@
-"""Stage ``sphere_grid``: python -m stages.sphere_grid SPHERES.npz OUT.npz"""
+"""Stage ``sphere_grid``: python -m stages.sphere_grid SPHERES.npz OUT.npz [--timing T.json] [--log L.mcap]"""
 
 import dataclasses
 
 from pipeline import sphere_grid
 from pipeline.artefacts import MedialSpheres
-from pipeline.cli import one_line_errors, params, stage_args, timed
+from pipeline.cli import one_line_errors, params, stage_args, stage_run
 
 
 @one_line_errors
 def main(argv=None):
     args = stage_args(__doc__, "spheres", "out", argv=argv)
-    with timed(args.timing, "sphere_grid"):
-        grid = sphere_grid.build(MedialSpheres.load(args.spheres), **dataclasses.asdict(params().sphere_grid))
+    config = dataclasses.asdict(params().sphere_grid)
+    with stage_run(args, "sphere_grid", params=config, inputs=[args.spheres], outputs=[args.out]) as run:
+        grid = sphere_grid.build(MedialSpheres.load(args.spheres), **config)
         grid.save(args.out)
+        run.count(spheres=len(grid), cells=int(grid.dims.prod()))
     print(f"sphere_grid {args.out}: {len(grid)} spheres in {int(grid.dims.prod())} cells")
 
 

@@ -11,6 +11,11 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from test_recording import instances, rows_of
+
+from pipeline.artefacts import MedialSpheres
+from pipeline.logbook import file_digest, read_log
+from pipeline.symmetry import Symmetry
 
 REPO = Path(__file__).resolve().parents[1]
 ENV = {**os.environ, "PYTHONPATH": str(REPO), "PATH": f"{Path(sys.executable).parent}:{os.environ['PATH']}"}
@@ -132,6 +137,34 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     assert timings["stage"] == "simulate" and timings["process_seconds"] > timings["seconds"] > 0
     assert "| simulate | 8 |" in text
 
+    # every stage run wrote its MCAP log; classify and simulate their recordings, read back here
+    logs = tmp_path / "logs"
+    assert len(list(logs.rglob("*.mcap"))) == len(ran_stages(first)) and len(list(logs.rglob("*.rrd"))) == 4 + 8
+    folder = tmp_path / "data" / "capsule" / "1.0"
+    spheres, symmetry = MedialSpheres.load(folder / "spheres.npz"), Symmetry.load(folder / "symmetry.npz")
+    objects = logs / "capsule" / "1.0" / "object.rrd"
+    assert instances(objects, "/capsule-1.0/spheres", "Ellipsoids3D:centers") == len(spheres)
+    assert instances(objects, "/capsule-1.0/reduced", "Points3D:positions") == len(symmetry)
+    for hand in ("armar3", "barrett"):
+        candidates = pd.read_parquet(folder / hand / "candidates.parquet")
+        trials_run = pd.read_parquet(folder / hand / "trials.parquet")
+        grasps = logs / "capsule" / "1.0" / hand / "grasps.rrd"
+        assert instances(grasps, f"/capsule-1.0/candidates/{hand}/approach", "Arrows3D:vectors") == len(candidates) > 0
+        steps = rows_of(grasps, f"/capsule-1.0/trials/{hand}/outcome").column("trial").to_pylist()
+        assert sorted(steps) == list(range(len(trials_run)))
+        messages = read_log(logs / "capsule" / "1.0" / hand / "simulate.mcap")
+        topics = [topic for topic, _ in messages]
+        assert topics.count("/trials") == len(trials_run) and topics.count("/stage") == 2
+        assert topics.count("/artefacts") == 4 and topics.count("/counts") == topics.count("/timing") == 1
+        hashed = {message["path"]: message["sha256"] for topic, message in messages if topic == "/artefacts"}
+        assert hashed[f"data/capsule/1.0/{hand}/trials.parquet"] == file_digest(folder / hand / "trials.parquet")[0]
+        logged = [message for topic, message in messages if topic == "/trials"]
+        for row in (int(trials_run.epsilon.idxmax()), len(trials_run) - 1):
+            assert [logged[row][key] for key in ("planner", "outcome", "sphere_index")] == \
+                [trials_run[key][row] for key in ("planner", "outcome", "sphere_index")]
+            assert logged[row]["epsilon"] == pytest.approx(trials_run.epsilon[row])
+            assert logged[row]["joints"] == pytest.approx(list(trials_run.joints[row]))
+
     # nothing changed: nothing runs
     second = run(dvc + ["repro"], tmp_path)
     assert second.returncode == 0 and not ran_stages(second)
@@ -162,9 +195,9 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     assert run(["git", "clone", "-q", str(tmp_path), str(clone)], tmp_path.parent).returncode == 0
     pulled = run(dvc + ["pull"], clone)
     assert pulled.returncode == 0, pulled.stderr
-    outputs = sorted(path.relative_to(tmp_path) for folder in ("data", "report")
+    outputs = sorted(path.relative_to(tmp_path) for folder in ("data", "report", "logs")
                      for path in (tmp_path / folder).rglob("*") if path.is_file() and path.name[0] != ".")
-    assert len(outputs) == 4 * 10 + 8 * 5 + 6 + len(list((out / "figures").iterdir()))
+    assert len(outputs) == 4 * 10 + 8 * 5 + 6 + len(list((out / "figures").iterdir())) + 4 * 6 + 8 * 3 + 1
     for relative in outputs:
         assert (clone / relative).read_bytes() == (tmp_path / relative).read_bytes()
 

@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from conftest import chain
-from pipeline.candidates import vectors
+from pipeline.arrays import vectors
 from pipeline.errors import BadInputError
 from pipeline.figures import (CLASS_COLOURS, best_grasps, candidate_lines, diameter_colours, grasp_images,
                               image_grid, sphere_figure)

@@ -10,7 +10,7 @@ import functools
 import numpy as np
 import pytest
 
-from pipeline.candidates import vectors
+from pipeline.arrays import vectors
 from pipeline.hands import get_hand
 from pipeline.params import Params
 from pipeline.plan import run_chain

@@ -5,13 +5,16 @@ import json
 import numpy as np
 import pyarrow as pa
 import pytest
+import yaml
 from mcap.reader import make_reader
 from rerun.chunk import RrdReader
 
 from pipeline.hands import get_hand
+from pipeline.logbook import file_digest, read_log
 from pipeline.params import Params, SampleParams, SimulateParams
 from pipeline.plan import run_chain, summary
-from pipeline.recording import mcap_log, record_chain, rerun_recording
+from pipeline.logbook import mcap_log
+from pipeline.recording import record_chain, rerun_recording
 
 HANDS = ["armar3", "barrett"]
 
@@ -25,6 +28,8 @@ def recorded(tmp_path_factory):
     result = summary(artefacts, timings, source="primitive:capsule", scale=1.0, seed=0)
     record_chain(folder / "capsule.rrd", folder / "capsule.mcap", artefacts, result, name="capsule",
                  hands=[get_hand(hand) for hand in HANDS], settings=params.simulate.world_settings())
+    artefacts["sample"].save(folder / "surface.npz")
+    artefacts["sphere_grid"].save(folder / "sphere_grid.npz")
     return folder, artefacts
 
 
@@ -75,7 +80,7 @@ def test_mcap_counts_and_one_trial_match_the_trials_table(recorded):
     assert messages[-1][1] == {"stage": "plan", "event": "end"}
     assert {encoding for _, _, encoding in messages} == {"jsonschema"}
     assert topics.count("/timing") == len(("sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates",
-                                            "simulate")) + 1
+                                            "simulate"))
     logged = [payload for topic, payload, _ in messages if topic == "/trials"]
     row = trials.iloc[len(trials) // 2]
     sent = logged[len(trials) // 2]
@@ -97,3 +102,55 @@ def test_an_interrupted_recording_leaves_nothing_under_its_name(tmp_path):
                     stream.log("/warning", {"message": "half-way"})
                 raise KeyboardInterrupt
         assert list(tmp_path.iterdir()) == []
+
+
+def run_classify_stage(folder, monkeypatch, *, record, grid="sphere_grid.npz"):
+    """The classify stage in ``folder`` (which gets a params.yaml with ``record``); returns its exit code."""
+    from stages import classify
+
+    monkeypatch.chdir(folder)
+    (folder / "params.yaml").write_text(yaml.safe_dump({"record": record, "classify": {"search_radius": 0.05}}))
+    try:
+        classify.main([grid, "surface.npz", "symmetry.npz", "--timing", "timing.json", "--log", "logs/classify.mcap",
+                       "--rrd", "logs/object.rrd", "--recording-id", "capsule-1.0"])
+    except SystemExit as exit_:
+        return exit_.code
+    return 0
+
+
+def test_a_stage_logs_hashes_counts_and_records_unless_turned_off(recorded, monkeypatch, capsys):
+    folder, artefacts = recorded
+    assert run_classify_stage(folder, monkeypatch, record=True) == 0
+    messages = read_log(folder / "logs" / "classify.mcap")
+    topics = [topic for topic, _ in messages]
+    assert topics[0] == "/stage" and topics[-1] == "/stage" and topics.count("/params") == 1
+    assert dict(messages)["/params"]["search_radius"] == 0.05
+    hashed = {message["path"]: message for topic, message in messages if topic == "/artefacts"}
+    assert [hashed[path]["role"] for path in ("sphere_grid.npz", "surface.npz", "symmetry.npz")] == \
+        ["input", "input", "output"]
+    assert hashed["symmetry.npz"]["sha256"] == file_digest(folder / "symmetry.npz")[0]
+    symmetry = artefacts["classify"]
+    counts = dict(messages)["/counts"]
+    assert counts["reduced_spheres"] == counts["axis"] == len(symmetry)  # a capsule: all on its symmetry axis
+    timing = json.loads((folder / "timing.json").read_text())
+    assert dict(messages)["/timing"] == timing and 0 < timing["record_seconds"] < timing["seconds"]
+    rrd = folder / "logs" / "object.rrd"
+    assert instances(rrd, "/capsule-1.0/spheres", "Ellipsoids3D:centers") == len(artefacts["mat"])
+    assert instances(rrd, "/capsule-1.0/reduced", "Points3D:positions") == len(symmetry)
+    assert instances(rrd, "/capsule-1.0/surface/samples", "Points3D:positions") == len(artefacts["sample"].points)
+
+    # params record: false -> the declared .rrd exists, empty; the log is still written
+    assert run_classify_stage(folder, monkeypatch, record=False) == 0
+    assert rrd.stat().st_size == 0 and json.loads((folder / "timing.json").read_text())["record_seconds"] == 0
+    assert ("/counts", counts) in read_log(folder / "logs" / "classify.mcap")
+
+
+def test_a_failed_stage_leaves_no_log_recording_or_timing(recorded, monkeypatch, capsys, tmp_path):
+    folder, _ = recorded
+    for name in ("sphere_grid.npz", "surface.npz"):
+        (tmp_path / name).write_bytes((folder / name).read_bytes())
+    (tmp_path / "broken.npz").write_bytes(b"PK\x03\x04 not a zip")
+    assert run_classify_stage(tmp_path, monkeypatch, record=True, grid="broken.npz") == 2
+    assert capsys.readouterr().err.startswith("error: broken.npz")
+    left = sorted(path.name for path in tmp_path.rglob("*") if path.is_file())
+    assert left == ["broken.npz", "params.yaml", "sphere_grid.npz", "surface.npz"]

@@ -56,15 +56,18 @@ def test_metrics_overall_per_hand_and_wins(trials):
 
 def test_markdown_has_a_row_per_run_and_names_the_losers(trials):
     table = report.results(trials, RUNS)
-    timings = report.timing_table([{"stage": "simulate", "seconds": 3.0}, {"stage": "sample", "seconds": 1.0, "process_seconds": 2.5},
+    timings = report.timing_table([{"stage": "simulate", "seconds": 3.0, "process_seconds": 4.0, "record_seconds": 1.0},
+                                   {"stage": "sample", "seconds": 1.0, "process_seconds": 2.5},
                                    {"stage": "sample", "seconds": 2.0}])
     assert timings.stage.tolist() == ["sample", "simulate"] and timings.total_s.tolist() == [3.0, 3.0]
-    assert timings.process_total_s.tolist() == [4.5, 3.0]  # a record without process time counts its work
+    assert timings.process_total_s.tolist() == [4.5, 4.0]  # a record without process time counts its work
+    assert timings.record_total_s.tolist() == [0.0, 1.0]
     text = report.markdown(table, report.metrics(trials, table), timings, settings="protocol")
     assert "| mug | 75.0 | 0.0 |" in text        # Table I: ARMAR-III x1, x0.5
     assert "| ball | - |  |" in text              # no candidates: no rate, not 0 %
     assert "| mug | 25.0 | 100.0 |" in text       # the baseline's Table I
     assert "mug x0.5 armar3 (0.0 vs 100.0)" in text
+    assert "Recording took 1.0 s of the stages' 8.5 s: it added 13.3 % to the run" in text  # 1 / (8.5 - 1)
     assert "Runs without MAT trials (no sphere of the reduced set fits the hand): ball x1 armar3" in text
     assert sum(line.startswith(("| mug | 1 |", "| mug | 0.5 |", "| ball | 1 |")) for line in text.splitlines()) == 3
 

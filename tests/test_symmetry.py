@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from conftest import chain
-from pipeline.candidates import IDS_PER_SPHERE, generate, generate_for_hands, vectors
+from pipeline.arrays import vectors
+from pipeline.candidates import IDS_PER_SPHERE, generate, generate_for_hands
 from pipeline.hands import HANDS, Hand, get_hand
 from pipeline.params import Params, SampleParams
 from pipeline.plan import run_chain
