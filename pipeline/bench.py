@@ -200,41 +200,75 @@ def run_trial_bench(*, trials=100, out=print):
 
 
 def run_recording_bench(*, trials=100, repeats=3, out=print):
-    """What recording costs against the work it records: per hand, ``trials`` MAT trials on the
-    duck on one core, then the median of ``repeats`` recordings of them (.rrd trial timeline and
-    MCAP ``/trials``); returns the rows."""
+    """What the stages' recordings add to one object's run, on the duck, one core: the geometry
+    chain (sample ... classify) against classify's ``object.rrd``; per hand, ``trials`` MAT
+    trials against the ``grasps.rrd`` of simulate (its candidates and trials) and the MCAP
+    ``/trials``; and ``import rerun`` in a fresh process, paid once by each recording stage.
+    Recording times are medians of ``repeats``. Returns the rows."""
+    import subprocess
+    import sys
     import tempfile
     from pathlib import Path
 
     from .logbook import mcap_log
-    from .recording import log_trials, rerun_recording
+    from .recording import log_candidates, log_spheres, log_surface, log_symmetry, log_trials, rerun_recording
     from .trials import simulate
 
+    def median_seconds(action, count):
+        times = []
+        for _ in range(count):
+            start = time.perf_counter()
+            action()
+            times.append(time.perf_counter() - start)
+        return float(np.median(times))
+
+    start = time.perf_counter()
     surface, faces = trial_bench_surface()
-    axis = medial_axis(surface, **vars(MedialAxisParams()))
-    symmetry = classify(sphere_grid.build(reconstruct(surface, axis, **vars(MatParams()))), **vars(ClassifyParams()))
-    out(f"recording cost on the duck ({faces} triangles): {trials} MAT trials per hand, one core; "
-        f"recording = median of {repeats}")
-    out(f"{'hand':13} {'trials':>7} {'simulate s':>11} {'record s':>9} {'ratio':>7}")
+    grid = sphere_grid.build(reconstruct(surface, medial_axis(surface, **vars(MedialAxisParams())), **vars(MatParams())))
+    symmetry = classify(grid, **vars(ClassifyParams()))
+    geometry = time.perf_counter() - start
+    bare = median_seconds(lambda: subprocess.run([sys.executable, "-c", "pass"], check=True), repeats)
+    imported = median_seconds(lambda: subprocess.run([sys.executable, "-c", "import rerun"], check=True), repeats)
+    importing = max(imported - bare, 0.0)
+    out(f"recording cost on the duck ({faces} triangles, {len(grid)} medial spheres): {trials} MAT trials per hand, "
+        f"one core; recording = median of {repeats}")
+    out(f"{'what':34} {'work s':>8} {'record s':>9} {'ratio':>7}")
     rows = []
+
+    def row(name, work, recorded):
+        rows.append(dict(what=name, work_s=round(work, 3), record_s=round(recorded, 3),
+                         ratio=round(recorded / work, 3) if work else None))
+        out(f"{name:34} {work:8.2f} {recorded:9.3f} " + (f"{100 * recorded / work:6.1f}%" if work else ""))
+
     with tempfile.TemporaryDirectory() as folder:
+        rrd, log_path = Path(folder) / "bench.rrd", Path(folder) / "bench.mcap"
+
+        def record_object():
+            with rerun_recording(rrd, recording_id="bench") as stream:
+                log_surface(stream, "/duck", surface)
+                log_spheres(stream, "/duck", grid)
+                log_symmetry(stream, "/duck", symmetry)
+
+        row("import rerun (each recording stage)", 0.0, importing)
+        row("sample..classify: object.rrd", geometry, median_seconds(record_object, repeats))
+        work, recorded = geometry, importing + rows[-1]["record_s"]
         for name, hand in HANDS.items():
-            table = generate(symmetry, hand).sample(trials, random_state=0).reset_index(drop=True)
+            candidates = generate(symmetry, hand)
+            table = candidates.sample(trials, random_state=0).reset_index(drop=True)
             start = time.perf_counter()
             results, contacts = simulate(surface, table, [hand], spheres_per_object=len(table), baseline_trials=0,
                                          workers=1)
             simulated = time.perf_counter() - start
-            times = []
-            for _ in range(repeats):
-                start = time.perf_counter()
-                with rerun_recording(Path(folder) / "bench.rrd", recording_id="bench") as stream:
+
+            def record_grasps():
+                with rerun_recording(rrd, recording_id="bench") as stream:
+                    log_candidates(stream, "/duck", candidates)
                     log_trials(stream, "/duck", surface, hand, results, contacts)
-                with mcap_log(Path(folder) / "bench.mcap", "simulate") as log:
+                with mcap_log(log_path, "simulate") as log:
                     log.trials(results)
-                times.append(time.perf_counter() - start)
-            recorded = float(np.median(times))
-            rows.append(dict(hand=name, trials=len(results), simulate_s=round(simulated, 3),
-                             record_s=round(recorded, 3), ratio=round(recorded / simulated, 3)))
-            out(f"{name:13} {len(results):7d} {simulated:11.2f} {recorded:9.3f} {100 * recorded / simulated:6.1f}%")
-    out("target: recording adds <= 20 % to a run")
+
+            row(f"simulate {name}: grasps.rrd + MCAP", simulated, median_seconds(record_grasps, repeats))
+            work, recorded = work + simulated, recorded + importing + rows[-1]["record_s"]
+        row("the object, every hand", work, recorded)
+    out("target: recording adds <= 20 % to a run (the report's time table gives it for the whole `dvc repro`)")
     return rows

@@ -9,6 +9,7 @@ set, coloured by class), ``symmetry/e1``, ``symmetry/e2``, ``symmetry/cog`` (sph
 candidates), ``candidates/<hand>/approach`` (arrows ending at P_g along P_d) and
 ``candidates/<hand>/orient`` (P_o marks), and on the ``trial`` timeline, one step per trial,
 ``trials/<hand>/hand/{approach,retracted,closed}`` (the hand's link boxes),
+``trials/<hand>/joints`` (the closed joint values, rad, in the order of the hand's limits),
 ``trials/<hand>/contacts`` with ``normals`` and ``cones``, ``trials/<hand>/epsilon`` and
 ``trials/<hand>/outcome`` (scalars; the outcome as its index in ``simulation.OUTCOMES``).
 
@@ -174,6 +175,9 @@ def log_trials(stream, root, surface, hand, trials, contacts, *, settings=None):
         *rr.Scalars.columns(scalars=[float(OUTCOMES.index(str(outcome))) for outcome in trials.outcome]),
         *rr.TextLog.columns(text=[f"{planner} {outcome} eps {epsilon:.4f}" for planner, outcome, epsilon
                                   in zip(trials.planner, trials.outcome, trials.epsilon)])])
+    joints = [np.asarray(values, float).ravel() for values in trials.joints]
+    stream.send_columns(f"{path}/joints", indexes=steps, columns=rr.AnyValues.columns(
+        joints_rad=np.concatenate(joints) if joints else np.zeros(0)).partition([len(values) for values in joints]))
 
 
 def send_blueprint(stream, root):

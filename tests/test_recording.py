@@ -63,6 +63,9 @@ def test_rrd_holds_every_sphere_candidate_and_one_step_per_trial(recorded):
         assert closed.num_rows == len(own)
         sizes = {len(value) for value in closed.column("Boxes3D:half_sizes").to_pylist()}
         assert sizes == {len(get_hand(hand).links)}
+        joints = rows_of(path, f"/capsule/trials/{hand}/joints")
+        by_step = dict(zip(joints.column("trial").to_pylist(), joints.column("joints_rad").to_pylist()))
+        assert by_step[len(own) - 1] == pytest.approx(list(own.joints.iloc[-1]))
         epsilon = rows_of(path, f"/capsule/trials/{hand}/epsilon")
         by_step = dict(zip(epsilon.column("trial").to_pylist(), epsilon.column("Scalars:scalars").to_pylist()))
         assert [by_step[step][0] for step in range(len(own))] == pytest.approx(own.epsilon.tolist())
