@@ -149,6 +149,9 @@ def log_trials(stream, root, surface, hand, trials, contacts, *, settings=None):
             links = len(world.boxes[2])
             centres = np.concatenate([box[0] for box in boxes]) if boxes else np.zeros((0, 3))
             rotations = np.concatenate([box[1] for box in boxes]) if boxes else np.zeros((0, 3, 3))
+            # the closed hand solid, its approach and retracted poses as outlines behind it
+            fill = rr.components.FillMode.Solid if name == "closed" else rr.components.FillMode.MajorWireframe
+            stream.log(f"{path}/hand/{name}", rr.Boxes3D.from_fields(fill_mode=fill), static=True)
             stream.send_columns(f"{path}/hand/{name}", indexes=steps, columns=rr.Boxes3D.columns(
                 centers=centres, half_sizes=np.tile(world.boxes[2], (len(boxes), 1)),
                 quaternions=Rotation.from_matrix(rotations).as_quat() if len(rotations) else np.zeros((0, 4)),
@@ -186,7 +189,9 @@ def send_blueprint(stream, root):
 
     stream.send_blueprint(rrb.Blueprint(rrb.Horizontal(
         rrb.Spatial3DView(origin=root, name="object, spheres, grasps"),
-        rrb.Vertical(rrb.TimeSeriesView(origin=f"{root}/trials", name="epsilon and outcome"),
+        rrb.Vertical(rrb.TimeSeriesView(origin=f"{root}/trials", contents="$origin/*/epsilon", name="epsilon"),
+                     rrb.TimeSeriesView(origin=f"{root}/trials", contents="$origin/*/outcome",
+                                        name="outcome (0 force closure ... 4 error)"),
                      rrb.TextLogView(origin=f"{root}/trials", name="trials")),
         column_shares=[3, 1])))
 

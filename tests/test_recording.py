@@ -33,9 +33,11 @@ def recorded(tmp_path_factory):
     return folder, artefacts
 
 
-def rows_of(path, entity):
-    """The record batches logged to ``entity`` in the .rrd at ``path``, concatenated."""
-    batches = [chunk.to_record_batch() for chunk in RrdReader(path).stream() if chunk.entity_path == entity]
+def rows_of(path, entity, timeline=False):
+    """The record batches logged to ``entity`` in the .rrd at ``path``, concatenated (``timeline``:
+    only those on a timeline, not static ones)."""
+    batches = [chunk.to_record_batch() for chunk in RrdReader(path).stream()
+               if chunk.entity_path == entity and not (timeline and chunk.is_static)]
     assert batches, f"no chunk for {entity}"
     return pa.Table.from_batches(batches)
 
@@ -59,7 +61,7 @@ def test_rrd_holds_every_sphere_candidate_and_one_step_per_trial(recorded):
         own = trials[trials.hand == hand].reset_index(drop=True)
         assert sorted(steps) == list(range(len(own))) and len(own) > 0
         # the hand's closed pose: one box per link at every trial
-        closed = rows_of(path, f"/capsule/trials/{hand}/hand/closed")
+        closed = rows_of(path, f"/capsule/trials/{hand}/hand/closed", timeline=True)
         assert closed.num_rows == len(own)
         sizes = {len(value) for value in closed.column("Boxes3D:half_sizes").to_pylist()}
         assert sizes == {len(get_hand(hand).links)}
