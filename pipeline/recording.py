@@ -10,8 +10,9 @@ candidates), ``candidates/<hand>/approach`` (arrows ending at P_g along P_d) and
 ``candidates/<hand>/orient`` (P_o marks), and on the ``trial`` timeline, one step per trial,
 ``trials/<hand>/hand/{approach,retracted,closed}`` (the hand's link boxes),
 ``trials/<hand>/joints`` (the closed joint values, rad, in the order of the hand's limits),
-``trials/<hand>/contacts`` with ``normals`` and ``cones``, ``trials/<hand>/epsilon`` and
-``trials/<hand>/outcome`` (scalars; the outcome as its index in ``simulation.OUTCOMES``).
+``trials/<hand>/contacts`` with ``normals`` and ``cones``, and the scalars ``epsilon/<hand>`` and
+``outcome/<hand>`` (the outcome as its index in ``simulation.OUTCOMES``, with a text line per
+trial); grouped by quantity so that each plot of the blueprint takes a whole subtree.
 
 Files are written beside their final name and renamed into place when complete: an interrupted
 run never leaves a truncated file under the final name.
@@ -172,9 +173,9 @@ def log_trials(stream, root, surface, hand, trials, contacts, *, settings=None):
         origins=position, vectors=-scale * normal).partition(per_trial))
     stream.send_columns(f"{path}/cones", indexes=steps, columns=rr.LineStrips3D.columns(
         strips=strips).partition(per_trial * edges))
-    stream.send_columns(f"{path}/epsilon", indexes=steps, columns=rr.Scalars.columns(
+    stream.send_columns(f"{root}/epsilon/{hand.name}", indexes=steps, columns=rr.Scalars.columns(
         scalars=trials.epsilon.to_numpy(float)))
-    stream.send_columns(f"{path}/outcome", indexes=steps, columns=[
+    stream.send_columns(f"{root}/outcome/{hand.name}", indexes=steps, columns=[
         *rr.Scalars.columns(scalars=[float(OUTCOMES.index(str(outcome))) for outcome in trials.outcome]),
         *rr.TextLog.columns(text=[f"{planner} {outcome} eps {epsilon:.4f}" for planner, outcome, epsilon
                                   in zip(trials.planner, trials.outcome, trials.epsilon)])])
@@ -189,10 +190,9 @@ def send_blueprint(stream, root):
 
     stream.send_blueprint(rrb.Blueprint(rrb.Horizontal(
         rrb.Spatial3DView(origin=root, name="object, spheres, grasps"),
-        rrb.Vertical(rrb.TimeSeriesView(origin=f"{root}/trials", contents="$origin/*/epsilon", name="epsilon"),
-                     rrb.TimeSeriesView(origin=f"{root}/trials", contents="$origin/*/outcome",
-                                        name="outcome (0 force closure ... 4 error)"),
-                     rrb.TextLogView(origin=f"{root}/trials", name="trials")),
+        rrb.Vertical(rrb.TimeSeriesView(origin=f"{root}/epsilon", name="epsilon"),
+                     rrb.TimeSeriesView(origin=f"{root}/outcome", name="outcome (0 force closure ... 4 error)"),
+                     rrb.TextLogView(origin=f"{root}/outcome", name="trials")),
         column_shares=[3, 1])))
 
 

@@ -150,7 +150,7 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
         trials_run = pd.read_parquet(folder / hand / "trials.parquet")
         grasps = logs / "capsule" / "1.0" / hand / "grasps.rrd"
         assert instances(grasps, f"/capsule-1.0/candidates/{hand}/approach", "Arrows3D:vectors") == len(candidates) > 0
-        steps = rows_of(grasps, f"/capsule-1.0/trials/{hand}/outcome").column("trial").to_pylist()
+        steps = rows_of(grasps, f"/capsule-1.0/outcome/{hand}").column("trial").to_pylist()
         assert sorted(steps) == list(range(len(trials_run)))
         messages = read_log(logs / "capsule" / "1.0" / hand / "simulate.mcap")
         topics = [topic for topic, _ in messages]

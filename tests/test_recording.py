@@ -57,7 +57,7 @@ def test_rrd_holds_every_sphere_candidate_and_one_step_per_trial(recorded):
         candidates = artefacts["candidates"]
         assert instances(path, f"/capsule/candidates/{hand}/approach", "Arrows3D:vectors") == \
             int((candidates.hand == hand).sum())
-        steps = rows_of(path, f"/capsule/trials/{hand}/outcome").column("trial").to_pylist()
+        steps = rows_of(path, f"/capsule/outcome/{hand}").column("trial").to_pylist()
         own = trials[trials.hand == hand].reset_index(drop=True)
         assert sorted(steps) == list(range(len(own))) and len(own) > 0
         # the hand's closed pose: one box per link at every trial
@@ -68,7 +68,7 @@ def test_rrd_holds_every_sphere_candidate_and_one_step_per_trial(recorded):
         joints = rows_of(path, f"/capsule/trials/{hand}/joints")
         by_step = dict(zip(joints.column("trial").to_pylist(), joints.column("joints_rad").to_pylist()))
         assert by_step[len(own) - 1] == pytest.approx(list(own.joints.iloc[-1]))
-        epsilon = rows_of(path, f"/capsule/trials/{hand}/epsilon")
+        epsilon = rows_of(path, f"/capsule/epsilon/{hand}")
         by_step = dict(zip(epsilon.column("trial").to_pylist(), epsilon.column("Scalars:scalars").to_pylist()))
         assert [by_step[step][0] for step in range(len(own))] == pytest.approx(own.epsilon.tolist())
 
