@@ -1,4 +1,4 @@
-"""Command line: ``python -m pipeline {plan,bench,hands,objects} ...`` (``--help`` on each)."""
+"""Command line: ``python -m pipeline {plan,batch,bench,hands,objects} ...`` (``--help`` on each)."""
 
 import argparse
 import json
@@ -29,6 +29,19 @@ def main(argv=None):
                       help="also write recording.rrd (open with `rerun`) and log.mcap into --out")
     plan.add_argument("--params", default=None,
                       help=f"params file (default: {PARAMS_FILE} if present, else built-in defaults)")
+    batch = commands.add_parser("batch", help="run every stage on every mesh of a folder, on Ray (local or a cluster)")
+    batch.add_argument("folder", help="folder of meshes (searched recursively), or pybullet:DIR, e.g. pybullet:random_urdfs")
+    batch.add_argument("--hand", action="append", required=True, help="built-in hand name or spec file (repeatable)")
+    batch.add_argument("--out", required=True, help="output folder: objects/*.parquet and trials/*.parquet")
+    batch.add_argument("--address", default=None,
+                       help="join this Ray cluster (host:port; default $RAY_ADDRESS, else an embedded local Ray)")
+    batch.add_argument("--workers", type=int, default=None, help="CPUs of the embedded Ray (default: every core)")
+    batch.add_argument("--scale", type=float, default=1.0, help="factor on every mesh's coordinates "
+                                                                 "(0.015 for pybullet:random_urdfs, as their URDFs)")
+    batch.add_argument("--seed", type=int, default=None, help="overrides params.yaml's seed")
+    batch.add_argument("--spheres", type=int, default=None, help="random spheres per object and hand (default: params)")
+    batch.add_argument("--params", default=None,
+                       help=f"params file (default: {PARAMS_FILE} if present, else built-in defaults)")
     bench = commands.add_parser("bench", help="benchmark medial_axis + mat (vs voronoi_poles), classify + candidates, "
                                               "grasp trials and the cost of recording them")
     bench.add_argument("--json", default=None, help="also write the figures to this JSON file")
@@ -55,6 +68,8 @@ def main(argv=None):
         return _objects(args)
     if args.command == "plan":
         return _plan(args)
+    if args.command == "batch":
+        return _batch(args)
     if args.command == "hands":
         return _hands(args, hands)
     from .bench import run_bench
@@ -93,19 +108,46 @@ def _objects(args):
     print(f"wrote {len(entries)} objects into {args.write}: run `dvc repro`")
 
 
-def _plan(args):
+def _command_params(args):
+    """The params file of ``--params`` (or params.yaml here, else the defaults) with the
+    command's ``--spheres`` / ``--baseline`` overrides."""
     import dataclasses
+    from pathlib import Path
+
+    params_path = args.params or (PARAMS_FILE if Path(PARAMS_FILE).is_file() else None)
+    params = load_params(params_path) if params_path else Params()
+    overrides = {key: value for key, value in (("spheres_per_object", args.spheres),
+                                               ("baseline_trials", getattr(args, "baseline", None)))
+                 if value is not None}
+    if overrides:
+        params = dataclasses.replace(params, simulate=dataclasses.replace(params.simulate, **overrides))
+    return params
+
+
+def _batch(args):
+    from .batch import find_meshes, run_batch
+    from .hands import get_hand
+
+    params = _command_params(args)
+    for hand in args.hand:
+        get_hand(hand)  # an unknown hand fails here, in one line, before Ray starts
+    meshes = find_meshes(args.folder)
+    print(f"batch: {len(meshes)} meshes from {args.folder} -> {args.out}", file=sys.stderr)
+    counts = run_batch(meshes, args.out, hands=args.hand, params=params, scale=args.scale, seed=args.seed,
+                       address=args.address, workers=args.workers,
+                       progress=lambda line: print(line, file=sys.stderr, flush=True))
+    print(f"batch {args.out}: {counts['ok']} ok, {counts['error']} bad meshes, {counts['failed']} failed, "
+          f"{counts['skipped']} skipped (done before) in {counts['seconds']:.1f} s "
+          f"(Ray start {counts['ray_start_s']:.1f} s); read: pd.read_parquet('{args.out}/objects')")
+
+
+def _plan(args):
     from pathlib import Path
 
     from .plan import run_chain, summary, write_plan
 
-    params_path = args.params or (PARAMS_FILE if Path(PARAMS_FILE).is_file() else None)
-    params = load_params(params_path) if params_path else Params()
+    params = _command_params(args)
     seed = params.seed if args.seed is None else args.seed
-    overrides = {key: value for key, value in (("spheres_per_object", args.spheres),
-                                               ("baseline_trials", args.baseline)) if value is not None}
-    if overrides:
-        params = dataclasses.replace(params, simulate=dataclasses.replace(params.simulate, **overrides))
     with progress_bar("simulate") as trial_progress:
         artefacts, timings = run_chain(args.mesh, params, scale=args.scale, seed=seed, hands=args.hand,
                                        simulate=not args.no_simulate, workers=args.workers,

@@ -1,0 +1,222 @@
+"""Batch planning: the per-object chain (sample ... simulate) over a folder of meshes, on Ray.
+
+DVC stays the tool for the reproducible default run; a dataset of thousands of meshes runs the
+very same :func:`pipeline.plan.run_chain` as Ray tasks, one object per task, on an embedded
+local Ray (the machine's cores) or on an existing cluster.
+
+Output, two folders of parquet files that pandas or any parquet reader opens as one table each
+(``pd.read_parquet(OUT / "objects")``):
+
+- ``OUT/objects/<name>.parquet``: one row per object: ``status`` (``ok``; ``error``: the mesh
+  or a param was refused, ``reason`` says why; ``failed``: the task raised or its worker crashed
+  twice), counts, force-closure rates and the object's ``key``;
+- ``OUT/trials/<name>.parquet``: every trial of the object, all hands, ``object`` in front.
+
+The driver writes each object's files as its result arrives, trials first and the summary row
+last, each atomically: the summary row marks the object done. ``key`` hashes the mesh file's
+bytes, the scale, the seed, the hands and every param the chain reads, so a rerun skips each
+object done with the same key, an interrupted batch resumes where it stopped, and no object is
+written twice. Memory stays bounded: at most ``2 x workers`` objects are in flight.
+"""
+
+import dataclasses
+import logging
+import os
+import re
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+
+from .artefacts import SCHEMA_VERSION, content_key, write_table
+from .objects import MESH_SUFFIXES
+from .errors import BadInputError, PipelineError
+from .logbook import file_digest
+
+SUMMARY_COLUMNS = {"object": str, "status": str, "reason": str, "key": str, "source": str, "samples": "Int64",
+                   "medial_spheres": "Int64", "reduced_spheres": "Int64", "candidates": "Int64", "mat_trials": "Int64",
+                   "force_closure_rate": float, "mean_epsilon": float, "baseline_trials": "Int64",
+                   "baseline_force_closure_rate": float, "seconds": float}
+DONE = ("ok", "error")  # outcomes that the same key would give again; "failed" is retried
+
+
+def find_meshes(folder):
+    """Mesh files under ``folder`` (recursive, in natural order) and their object names.
+
+    ``folder`` may be ``pybullet:DIR``, a folder of the installed pybullet_data package (the
+    demo dataset: ``pybullet:random_urdfs``). Names are file stems when unique, else the path
+    relative to ``folder`` with ``_`` for ``/``.
+
+    Returns
+    -------
+    list of (name, absolute Path)
+    """
+    if str(folder).startswith("pybullet:"):
+        import pybullet_data
+
+        folder = Path(pybullet_data.getDataPath()) / str(folder).removeprefix("pybullet:")
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise BadInputError(f"{folder}: not a folder")
+    paths = sorted((path.resolve() for path in folder.rglob("*") if path.suffix.lower() in MESH_SUFFIXES
+                    and path.is_file()), key=lambda path: [int(part) if part.isdigit() else part
+                                                           for part in re.split(r"(\d+)", str(path))])
+    if not paths:
+        raise BadInputError(f"{folder}: holds no mesh ({', '.join(sorted(MESH_SUFFIXES))})")
+    stems = [path.stem for path in paths]
+    unique = len(set(stems)) == len(stems)
+    names = [stem if unique else "_".join(path.relative_to(folder.resolve()).with_suffix("").parts)
+             for stem, path in zip(stems, paths)]
+    return [(re.sub(r"[^A-Za-z0-9_.-]", "_", name), path) for name, path in zip(names, paths)]
+
+
+def object_key(path, *, scale, seed, hands, params):
+    """Content key of one object's batch run: the mesh bytes and everything the chain reads."""
+    used = {section: dataclasses.asdict(getattr(params, section))
+            for section in ("sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate")}
+    used["candidates"].pop("hands")
+    used["simulate"].pop("workers")  # results do not depend on it
+    return content_key("batch", {"scale": scale, "seed": seed, "hands": list(hands), "params": used,
+                                 "schema": SCHEMA_VERSION}, file_digest(path)[0])
+
+
+def plan_object(name, path, *, scale, seed, hands, params):
+    """Run the chain on one mesh, one process: (summary row, trials table or None).
+
+    A :class:`PipelineError` (a refused mesh, ...) gives an ``error`` row with its message."""
+    from .plan import run_chain
+    from .trials import summary
+
+    start = time.perf_counter()
+    row = {"object": name, "source": str(path)}
+    try:
+        artefacts, _ = run_chain(str(path), params, scale=scale, seed=seed, hands=list(hands), simulate=True,
+                                 workers=1)
+    except PipelineError as err:
+        return {**row, "status": "error", "reason": str(err), "seconds": time.perf_counter() - start}, None
+    trials = artefacts["trials"]
+    result = summary(trials)
+    row.update(status="ok", reason="", samples=len(artefacts["sample"].points), medial_spheres=len(artefacts["mat"]),
+               reduced_spheres=len(artefacts["classify"]), candidates=len(artefacts["candidates"]),
+               mat_trials=result["trials"], force_closure_rate=result["force_closure_rate"],
+               mean_epsilon=result["mean_epsilon"], baseline_trials=result["baseline"]["trials"],
+               baseline_force_closure_rate=result["baseline"]["force_closure_rate"],
+               seconds=time.perf_counter() - start)
+    return row, trials.assign(object=name)[["object", *trials.columns]]
+
+
+def summary_frame(rows):
+    """Summary rows as a table with the fixed column types of :data:`SUMMARY_COLUMNS` (so that every
+    file of ``OUT/objects`` has the same schema, error rows included)."""
+    frame = pd.DataFrame(rows).reindex(columns=list(SUMMARY_COLUMNS))
+    return frame.astype({column: ("string" if kind is str else kind) for column, kind in SUMMARY_COLUMNS.items()})
+
+
+def done_keys(out):
+    """``{name: key}`` of the objects already done (status ``ok`` or ``error``) under ``out``."""
+    folder = Path(out) / "objects"
+    if not folder.is_dir():
+        return {}
+    done = pd.read_parquet(folder, columns=["object", "key", "status"]) if any(folder.glob("*.parquet")) else None
+    if done is None:
+        return {}
+    done = done[done.status.isin(DONE)]
+    return dict(zip(done.object, done.key))
+
+
+def write_object(out, row, trials):
+    """Write one object's trials (if any), then its summary row, each atomically."""
+    out = Path(out)
+    trial_path = out / "trials" / f"{row['object']}.parquet"
+    if trials is not None:
+        write_table(trial_path, trials)
+    else:
+        trial_path.unlink(missing_ok=True)  # a stale table of an earlier key
+    write_table(out / "objects" / f"{row['object']}.parquet", summary_frame([row]))
+
+
+def start_ray(address=None, workers=None):
+    """Join the cluster at ``address`` (or ``RAY_ADDRESS``), else start an embedded local Ray with
+    ``workers`` CPUs (default: every core). Returns the CPUs Ray offers."""
+    import ray
+
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    options = dict(include_dashboard=False, logging_level=logging.WARNING, log_to_driver=False)
+    address = address or os.environ.get("RAY_ADDRESS")
+    if address:  # other nodes get this package's code; the locked dependencies must be installed there
+        ray.init(address=address, runtime_env={"py_modules": [str(Path(__file__).parent)]}, **options)
+    else:  # "local": a private instance, even if a `ray start` cluster runs on this machine
+        os.environ.setdefault("RAY_AUTH_MODE", "disabled")
+        ray.init(address="local", num_cpus=workers or len(os.sched_getaffinity(0)), **options)
+    return int(ray.cluster_resources().get("CPU", 1))
+
+
+def run_batch(meshes, out, *, hands, params, scale=1.0, seed=None, address=None, workers=None, progress=None,
+              task=plan_object):
+    """Plan every mesh of ``meshes`` (``[(name, path)]``, see :func:`find_meshes`) into ``out``.
+
+    Objects already done with the same key are skipped without starting Ray. Returns a dict:
+    ``skipped``, ``ok``, ``error``, ``failed`` (counts), ``seconds`` and ``ray_start_s``.
+    ``progress(text)`` gets a line after each object. ``task`` is what runs per object (same
+    signature and result as :func:`plan_object`, which it defaults to).
+    """
+    seed = params.seed if seed is None else seed
+    done = done_keys(out)
+    keys = {name: object_key(path, scale=scale, seed=seed, hands=hands, params=params) for name, path in meshes}
+    todo = [(name, path) for name, path in meshes if done.get(name) != keys[name]]
+    counts = {"skipped": len(meshes) - len(todo), "ok": 0, "error": 0, "failed": 0, "ray_start_s": 0.0}
+    start = time.perf_counter()
+    if todo:
+        counts["ray_start_s"] = _run_on_ray(todo, keys, out, counts, task, hands=hands, params=params, scale=scale,
+                                            seed=seed, address=address, workers=workers, progress=progress)
+    counts["seconds"] = time.perf_counter() - start
+    return counts
+
+
+def _run_on_ray(todo, keys, out, counts, function, *, hands, params, scale, seed, address, workers, progress):
+    import ray
+
+    start = time.perf_counter()
+    cpus = start_ray(address, workers)
+    ray_start = time.perf_counter() - start
+    # retried once when its worker dies (segfault, OOM kill); a Python exception is not retried
+    task = ray.remote(max_retries=1, retry_exceptions=False)(function)
+    pending, queue, begun = {}, iter(todo), time.perf_counter()
+    try:
+        while True:
+            for name, path in queue:
+                pending[task.remote(name, path, scale=scale, seed=seed, hands=hands, params=params)] = (name, path)
+                if len(pending) >= 2 * cpus:
+                    break
+            if not pending:
+                break
+            (ref,), _ = ray.wait(list(pending), num_returns=1)
+            name, path = pending.pop(ref)
+            try:
+                row, trials = ray.get(ref)
+            except ray.exceptions.RayTaskError as err:
+                row, trials = {"object": name, "source": str(path), "status": "failed",
+                               "reason": str(err.cause or err).splitlines()[-1][:500]}, None
+            except ray.exceptions.RayError as err:  # the worker died twice (WorkerCrashedError, ...)
+                row, trials = {"object": name, "source": str(path), "status": "failed",
+                               "reason": f"{type(err).__name__}: worker died twice"}, None
+            write_object(out, {**row, "key": keys[name]}, trials)
+            counts[row["status"]] += 1
+            if progress:
+                finished = counts["ok"] + counts["error"] + counts["failed"]
+                rate = 60 * finished / max(time.perf_counter() - begun, 1e-9)
+                progress(f"{finished}/{len(todo)} objects: {counts['ok']} ok, {counts['error']} bad mesh, "
+                         f"{counts['failed']} failed, {rate:.1f} per minute; {name}: {row['status']}"
+                         + (f" ({row['reason']})" if row.get("reason") else ""))
+    finally:
+        ray.shutdown()
+    return ray_start
+
+
+def read_results(out):
+    """``(objects, trials)`` tables of a batch output folder (trials empty if none)."""
+    out = Path(out)
+    objects = pd.read_parquet(out / "objects")
+    trials = pd.read_parquet(out / "trials") if any((out / "trials").glob("*.parquet")) else pd.DataFrame()
+    return objects, trials
