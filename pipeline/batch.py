@@ -23,7 +23,6 @@ import dataclasses
 import logging
 import os
 import re
-import sys
 import time
 from pathlib import Path
 
