@@ -48,7 +48,7 @@ def main(argv=None):
     bench.add_argument("--sizes", default="20000,100000,200000", help="surface sample counts, comma-separated")
     bench.add_argument("--repeats", type=int, default=3, help="runs per case; the median is reported")
     bench.add_argument("--trials", type=int, default=100, help="grasp trials per hand in the trial table")
-    bench.add_argument("--only", choices=("medial", "symmetry", "trials", "recording"), default=None,
+    bench.add_argument("--only", choices=("medial", "symmetry", "trials", "recording", "batch"), default=None,
                        help="run one table")
     hands = commands.add_parser("hands", help="render the built-in hands, or export one as URDF + spec")
     hands.add_argument("--render", metavar="DIR", help="write DIR/<hand>.png, open and closed on an object")

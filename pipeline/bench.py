@@ -58,7 +58,7 @@ def _measure(surface, method, repeats):
 
 def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, trials=100, only=None, out=print):
     """Print (and optionally save) the benchmark tables (``only``: one of medial, symmetry,
-    trials, recording); returns {table: rows}."""
+    trials, recording, batch); returns {table: rows}."""
     tables = {}
     if only in (None, "medial"):
         tables["medial"] = run_medial_bench(sizes=sizes, repeats=repeats, out=out)
@@ -71,6 +71,9 @@ def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, trial
         out("")
     if only in (None, "recording"):
         tables["recording"] = run_recording_bench(trials=trials, repeats=repeats, out=out)
+        out("")
+    if only in (None, "batch"):
+        tables["batch"] = run_batch_bench(out=out)
     if json_path:
         text = json.dumps({"repeats": repeats, **tables}, indent=2).encode()
         atomic_write(json_path, lambda stream: stream.write(text))
@@ -271,4 +274,41 @@ def run_recording_bench(*, trials=100, repeats=3, out=print):
             work, recorded = work + simulated, recorded + importing + rows[-1]["record_s"]
         row("the object, every hand", work, recorded)
     out("target: recording adds <= 20 % to a run (the report's time table gives it for the whole `dvc repro`)")
+    return rows
+
+
+def run_batch_bench(*, objects=20, hands=("armar3", "barrett", "parallel_jaw"), spheres=10, out=print):
+    """Objects per minute of ``python -m pipeline batch`` on the first ``objects`` of pybullet's
+    random_urdfs with 1 and 2 workers of an embedded Ray (default params, ``spheres`` per object
+    and hand), the scaling efficiency, and a projection of 1000 objects x 3 hands on 16 and
+    4 x 16 cores from the measured cost per object. Returns the rows."""
+    import dataclasses
+    import tempfile
+
+    from .batch import find_meshes, run_batch
+    from .params import Params
+
+    params = Params()
+    params = dataclasses.replace(params, simulate=dataclasses.replace(params.simulate, spheres_per_object=spheres))
+    meshes = find_meshes("pybullet:random_urdfs")[:objects]
+    out(f"batch on {len(meshes)} random_urdfs objects x {len(hands)} hands, {spheres} spheres per object and hand "
+        f"(default params otherwise), embedded Ray, one run each")
+    out(f"{'workers':>7} {'ray start s':>11} {'work s':>7} {'objects/min':>11} {'efficiency':>10}")
+    rows = []
+    for workers in (1, 2):
+        with tempfile.TemporaryDirectory() as folder:
+            counts = run_batch(meshes, folder, hands=list(hands), params=params, scale=0.015, workers=workers)
+        work = counts["seconds"] - counts["ray_start_s"]
+        rate = 60 * len(meshes) / work
+        efficiency = rate / (workers * rows[0]["objects_per_min"]) if rows else 1.0
+        rows.append(dict(workers=workers, ray_start_s=round(counts["ray_start_s"], 2), work_s=round(work, 2),
+                         objects_per_min=round(rate, 2), efficiency=round(efficiency, 3), ok=counts["ok"],
+                         error=counts["error"], failed=counts["failed"]))
+        out(f"{workers:7d} {counts['ray_start_s']:11.1f} {work:7.1f} {rate:11.1f} {efficiency:10.2f}")
+    core_seconds = rows[0]["work_s"] / len(meshes)
+    efficiency = min(rows[-1]["efficiency"], 1.0)  # above 1 is noise; do not project a speed-up
+    for cores, name in ((16, "16 cores"), (64, "4 x 16 cores")):
+        minutes = 1000 * core_seconds / (cores * efficiency) / 60
+        out(f"projection: 1000 objects x {len(hands)} hands on {name}: {minutes:.1f} min + Ray start "
+            f"({core_seconds:.2f} core-s per object, efficiency {efficiency:.2f})")
     return rows

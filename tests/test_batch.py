@@ -121,3 +121,27 @@ def test_a_worker_crash_is_retried_once_then_recorded(dataset, tmp_path):
     # failed objects run again next time; done ones are skipped
     again = run_batch(meshes, tmp_path / "out", hands=HANDS, params=params, scale=SCALE, workers=2)
     assert again["skipped"] == 2 and again["ok"] == 1
+
+
+def test_the_same_command_joins_a_running_cluster(dataset, finished, tmp_path):
+    folder, _ = dataset
+    ray = [str(Path(sys.executable).parent / "ray")]
+    env = {**os.environ, "PYTHONPATH": str(REPO), "RAY_USAGE_STATS_ENABLED": "0", "RAY_AUTH_MODE": "disabled"}
+    started = subprocess.run(ray + ["start", "--head", "--port", "6391", "--num-cpus", "2", "--include-dashboard=false",
+                                    "--disable-usage-stats"], env=env, capture_output=True, text=True)
+    assert started.returncode == 0, started.stderr
+    try:
+        joined = subprocess.run([sys.executable, "-m", "pipeline", "batch", str(folder / "meshes"), "--hand", HANDS[0],
+                                 "--out", str(tmp_path / "out"), "--scale", str(SCALE), "--params",
+                                 str(folder / "params.yaml"), "--address", "127.0.0.1:6391"],
+                                cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    finally:
+        subprocess.run(ray + ["stop"], env=env, capture_output=True)
+    assert joined.returncode == 0, joined.stderr
+    assert "9 ok, 1 bad meshes, 0 failed" in joined.stdout
+    _, objects, trials = finished
+    mine, my_trials = read_results(tmp_path / "out")
+    assert sorted(mine.object) == sorted(objects.object)
+    key = ["object", "planner", "candidate_id"]
+    pd.testing.assert_frame_equal(my_trials.sort_values(key).reset_index(drop=True),
+                                  trials.sort_values(key).reset_index(drop=True), check_categorical=False)
