@@ -29,9 +29,10 @@ from pathlib import Path
 import pandas as pd
 
 from .artefacts import SCHEMA_VERSION, content_key, write_table
-from .objects import MESH_SUFFIXES
+from .catalogue import natural_key
 from .errors import BadInputError, PipelineError
 from .logbook import file_digest
+from .objects import MESH_SUFFIXES
 
 SUMMARY_COLUMNS = {"object": str, "status": str, "reason": str, "key": str, "source": str, "samples": "Int64",
                    "medial_spheres": "Int64", "reduced_spheres": "Int64", "candidates": "Int64", "mat_trials": "Int64",
@@ -59,15 +60,18 @@ def find_meshes(folder):
     if not folder.is_dir():
         raise BadInputError(f"{folder}: not a folder")
     paths = sorted((path.resolve() for path in folder.rglob("*") if path.suffix.lower() in MESH_SUFFIXES
-                    and path.is_file()), key=lambda path: [int(part) if part.isdigit() else part
-                                                           for part in re.split(r"(\d+)", str(path))])
+                    and path.is_file()), key=lambda path: (natural_key(path), str(path)))
     if not paths:
         raise BadInputError(f"{folder}: holds no mesh ({', '.join(sorted(MESH_SUFFIXES))})")
     stems = [path.stem for path in paths]
     unique = len(set(stems)) == len(stems)
     names = [stem if unique else "_".join(path.relative_to(folder.resolve()).with_suffix("").parts)
              for stem, path in zip(stems, paths)]
-    return [(re.sub(r"[^A-Za-z0-9_.-]", "_", name), path) for name, path in zip(names, paths)]
+    names = [re.sub(r"[^A-Za-z0-9_.-]", "_", name) for name in names]
+    if len(set(names)) < len(names):  # two files would write the same output files
+        clash = next(name for name in names if names.count(name) > 1)
+        raise BadInputError(f"{folder}: two meshes give the object name {clash!r}; rename one")
+    return list(zip(names, paths))
 
 
 def object_key(path, *, scale, seed, hands, params):
@@ -115,11 +119,9 @@ def summary_frame(rows):
 def done_keys(out):
     """``{name: key}`` of the objects already done (status ``ok`` or ``error``) under ``out``."""
     folder = Path(out) / "objects"
-    if not folder.is_dir():
+    if not any(folder.glob("*.parquet")):
         return {}
-    done = pd.read_parquet(folder, columns=["object", "key", "status"]) if any(folder.glob("*.parquet")) else None
-    if done is None:
-        return {}
+    done = pd.read_parquet(folder, columns=["object", "key", "status"])
     done = done[done.status.isin(DONE)]
     return dict(zip(done.object, done.key))
 
@@ -194,12 +196,10 @@ def _run_on_ray(todo, keys, out, counts, function, *, hands, params, scale, seed
             name, path = pending.pop(ref)
             try:
                 row, trials = ray.get(ref)
-            except ray.exceptions.RayTaskError as err:
-                row, trials = {"object": name, "source": str(path), "status": "failed",
-                               "reason": str(err.cause or err).splitlines()[-1][:500]}, None
-            except ray.exceptions.RayError as err:  # the worker died twice (WorkerCrashedError, ...)
-                row, trials = {"object": name, "source": str(path), "status": "failed",
-                               "reason": f"{type(err).__name__}: worker died twice"}, None
+            except ray.exceptions.RayError as err:
+                reason = (str(err.cause or err).splitlines()[-1][:500] if isinstance(err, ray.exceptions.RayTaskError)
+                          else f"{type(err).__name__}: worker died twice")  # WorkerCrashedError, ...
+                row, trials = {"object": name, "source": str(path), "status": "failed", "reason": reason}, None
             write_object(out, {**row, "key": keys[name]}, trials)
             counts[row["status"]] += 1
             if progress:

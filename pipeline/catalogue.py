@@ -15,7 +15,8 @@ from .errors import BadInputError
 from .objects import MESH_SUFFIXES, load_source
 
 
-def _natural(path):
+def natural_key(path):
+    """Sort key of a path by its stem, numbers by value (``2`` before ``10``)."""
     return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", path.stem)]
 
 
@@ -41,7 +42,7 @@ def folder_entries(folder, *, prefix="", scale=None, size=None, only=None):
         raise BadInputError(f"{folder}: not a folder")
     if scale is not None and size is not None:
         raise BadInputError("give --scale or --size, not both")
-    paths = sorted((path for path in folder.iterdir() if path.suffix.lower() in MESH_SUFFIXES), key=_natural)
+    paths = sorted((path for path in folder.iterdir() if path.suffix.lower() in MESH_SUFFIXES), key=natural_key)
     if only is not None:
         wanted = {str(stem) for stem in only}
         missing = sorted(wanted - {path.stem for path in paths})

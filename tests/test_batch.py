@@ -13,6 +13,7 @@ import pytest
 import yaml
 
 from pipeline.batch import find_meshes, plan_object, read_results, run_batch
+from pipeline.errors import BadInputError
 from pipeline.params import load_params
 from pipeline.plan import run_chain
 
@@ -145,3 +146,16 @@ def test_the_same_command_joins_a_running_cluster(dataset, finished, tmp_path):
     key = ["object", "planner", "candidate_id"]
     pd.testing.assert_frame_equal(my_trials.sort_values(key).reset_index(drop=True),
                                   trials.sort_values(key).reset_index(drop=True), check_categorical=False)
+
+
+def test_find_meshes_names_by_stem_or_path_and_refuses_a_name_clash(tmp_path):
+    for relative in ("b/2.obj", "b/10.obj", "a/2.obj", "notes.txt"):
+        (tmp_path / relative).parent.mkdir(exist_ok=True)
+        (tmp_path / relative).write_text("")
+    assert [name for name, _ in find_meshes(tmp_path)] == ["a_2", "b_2", "b_10"]  # stems clash: relative paths
+    assert all(path.is_absolute() for _, path in find_meshes(tmp_path))
+    (tmp_path / "c").mkdir()
+    (tmp_path / "c" / "x y.obj").write_text("")
+    (tmp_path / "c" / "x_y.stl").write_text("")
+    with pytest.raises(BadInputError, match="object name 'c_x_y'"):
+        find_meshes(tmp_path / "c" / "..")
