@@ -139,6 +139,8 @@ def _batch(args):
     print(f"batch {args.out}: {counts['ok']} ok, {counts['error']} bad meshes, {counts['failed']} failed, "
           f"{counts['skipped']} skipped (done before) in {counts['seconds']:.1f} s "
           f"(Ray start {counts['ray_start_s']:.1f} s); read: pd.read_parquet('{args.out}/objects')")
+    if counts["failed"]:
+        raise SystemExit(1)  # failed objects run again next time; bad meshes (error rows) do not
 
 
 def _plan(args):

@@ -68,6 +68,7 @@ def find_meshes(folder):
     names = [stem if unique else "_".join(path.relative_to(folder.resolve()).with_suffix("").parts)
              for stem, path in zip(stems, paths)]
     names = [re.sub(r"[^A-Za-z0-9_.-]", "_", name) for name in names]
+    names = [f"mesh{name}" if name[0] in "_." else name for name in names]  # parquet readers skip _* and .* files
     if len(set(names)) < len(names):  # two files would write the same output files
         clash = next(name for name in names if names.count(name) > 1)
         raise BadInputError(f"{folder}: two meshes give the object name {clash!r}; rename one")
@@ -80,7 +81,10 @@ def object_key(path, *, scale, seed, hands, params):
             for section in ("sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate")}
     used["candidates"].pop("hands")
     used["simulate"].pop("workers")  # results do not depend on it
-    return content_key("batch", {"scale": scale, "seed": seed, "hands": list(hands), "params": used,
+    from .hands import get_hand
+
+    specs = [dataclasses.asdict(get_hand(hand)) for hand in hands]  # an edited spec file changes the key
+    return content_key("batch", {"scale": scale, "seed": seed, "hands": specs, "params": used,
                                  "schema": SCHEMA_VERSION}, file_digest(path)[0])
 
 
@@ -100,12 +104,18 @@ def plan_object(name, path, *, scale, seed, hands, params):
         return {**row, "status": "error", "reason": str(err), "seconds": time.perf_counter() - start}, None
     trials = artefacts["trials"]
     result = summary(trials)
+    mat, baseline = result, result["baseline"]
+
+    def rate(counts, key):  # no trials: no rate, not 0 % (as in the report)
+        return counts[key] if counts["trials"] else float("nan")
+
     row.update(status="ok", reason="", samples=len(artefacts["sample"].points), medial_spheres=len(artefacts["mat"]),
                reduced_spheres=len(artefacts["classify"]), candidates=len(artefacts["candidates"]),
-               mat_trials=result["trials"], force_closure_rate=result["force_closure_rate"],
-               mean_epsilon=result["mean_epsilon"], baseline_trials=result["baseline"]["trials"],
-               baseline_force_closure_rate=result["baseline"]["force_closure_rate"],
-               seconds=time.perf_counter() - start)
+               mat_trials=mat["trials"], force_closure_rate=rate(mat, "force_closure_rate"),
+               mean_epsilon=rate(mat, "mean_epsilon"), baseline_trials=baseline["trials"],
+               baseline_force_closure_rate=rate(baseline, "force_closure_rate"), seconds=time.perf_counter() - start)
+    if not len(trials):  # no candidate fits a hand: no trials file (an empty table would have other column types)
+        return row, None
     return row, trials.assign(object=name)[["object", *trials.columns]]
 
 
@@ -197,9 +207,7 @@ def _run_on_ray(todo, keys, out, counts, function, *, hands, params, scale, seed
             try:
                 row, trials = ray.get(ref)
             except ray.exceptions.RayError as err:
-                reason = (str(err.cause or err).splitlines()[-1][:500] if isinstance(err, ray.exceptions.RayTaskError)
-                          else f"{type(err).__name__}: worker died twice")  # WorkerCrashedError, ...
-                row, trials = {"object": name, "source": str(path), "status": "failed", "reason": reason}, None
+                row, trials = {"object": name, "source": str(path), "status": "failed", "reason": failure(err)}, None
             write_object(out, {**row, "key": keys[name]}, trials)
             counts[row["status"]] += 1
             if progress:
@@ -211,6 +219,21 @@ def _run_on_ray(todo, keys, out, counts, function, *, hands, params, scale, seed
     finally:
         ray.shutdown()
     return ray_start
+
+
+def failure(err):
+    """One line saying why a Ray task gave no result: the task's own exception, or what
+    happened to its worker."""
+    import ray
+
+    if isinstance(err, ray.exceptions.RayTaskError):
+        cause = err.cause if err.cause is not None else err
+        lines = str(cause).strip().splitlines()
+        return f"{type(cause).__name__}: {lines[-1] if lines else ''}"[:500]
+    lines = str(err).strip().splitlines()
+    retried = " (after one retry)" if isinstance(err, (ray.exceptions.WorkerCrashedError,
+                                                       ray.exceptions.OutOfMemoryError)) else ""
+    return f"{type(err).__name__}{retried}: {lines[0] if lines else ''}"[:500]
 
 
 def read_results(out):

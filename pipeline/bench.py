@@ -258,7 +258,7 @@ def run_recording_bench(*, trials=500, repeats=3, out=print):
         work, recorded = geometry, importing + rows[-1]["record_s"]
         for name, hand in HANDS.items():
             candidates = generate(symmetry, hand)
-            table = candidates.sample(trials, random_state=0).reset_index(drop=True)
+            table = candidates.sample(min(trials, len(candidates)), random_state=0).reset_index(drop=True)
             start = time.perf_counter()
             results, contacts = simulate(surface, table, [hand], spheres_per_object=len(table), baseline_trials=0,
                                          workers=1)

@@ -105,8 +105,10 @@ def stage_run(args, stage, *, params=None, inputs=(), outputs=(), record=True):
     process's since it started, imports included, and the part spent recording), and ``--log``:
     an MCAP log of the stage's start, ``params`` (dict), the path, size and SHA-256 of each of
     ``inputs`` and ``outputs``, the counts, warnings (Python warnings raised in the block
-    included), the timing and the end. Every file is renamed into place only when complete, so
-    a failed stage leaves none of them. ``record`` (params ``record``) turns the recording off.
+    included), the timing and the end. Every file is renamed into place only when complete; the
+    timing and the log are written only when the whole block succeeds, so a failed stage leaves
+    neither (its artefacts, each atomic, may be there: DVC reruns the stage). ``record`` (params
+    ``record``) turns the recording off.
     """
     from .artefacts import atomic_write
     from .logbook import mcap_log

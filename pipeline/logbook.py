@@ -9,6 +9,7 @@ Every message is stamped with the wall clock (ns).
 import contextlib
 import hashlib
 import json
+import math
 import time
 
 import numpy as np
@@ -48,7 +49,7 @@ class McapLog:
                                                                 schema_id=schema)
         now = time.time_ns()
         self.writer.add_message(self.channels[topic], log_time=now, publish_time=now,
-                                data=json.dumps(message, default=_plain).encode())
+                                data=json.dumps(_finite(message), default=_plain, allow_nan=False).encode())
 
     def artefact(self, role, path):
         """An ``/artefacts`` message: ``role`` ("input" or "output"), the path, its size and SHA-256."""
@@ -69,6 +70,20 @@ def file_digest(path):
             digest.update(block)
             size += len(block)
     return digest.hexdigest(), size
+
+
+def _finite(value):
+    """``value`` with NaN and infinities as None: JSON has no such numbers (Foxglove's parser
+    refuses them), and a trial that failed early has no pose."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: _finite(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(item) for item in value]
+    if isinstance(value, (np.ndarray, np.generic)):
+        return _finite(value.tolist())
+    return value
 
 
 def _plain(value):

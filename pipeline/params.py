@@ -226,8 +226,8 @@ class Params:
     """Sizes each object runs at, as factors of its own (Table I: 1.0 and 0.5); kept as written,
     since ``data/<object>/<scale>/`` is named by DVC from the same text."""
     record: bool = True
-    """Write each stage's rerun recording (``logs/**/*.rrd``); off: the .rrd files are left empty.
-    The MCAP logs are always written."""
+    """Write the rerun recordings of classify and simulate (``logs/**/*.rrd``); off: the .rrd
+    files are written empty. The MCAP logs are always written."""
     sample: SampleParams = field(default_factory=SampleParams)
     medial_axis: MedialAxisParams = field(default_factory=MedialAxisParams)
     mat: MatParams = field(default_factory=MatParams)

@@ -1,5 +1,7 @@
 """Batch planning on an embedded Ray (slow: each Ray start takes seconds; run in CI)."""
 
+import dataclasses
+import math
 import os
 import shutil
 import signal
@@ -111,17 +113,28 @@ def test_a_worker_crash_is_retried_once_then_recorded(dataset, tmp_path):
         if name == "001":
             (attempts / f"{os.getpid()}").touch()
             os._exit(1)
+        if name == "002":
+            raise AssertionError()  # an exception without a message
         return plan_object(name, path, **keywords)
 
     meshes = [(name, path) for name, path in find_meshes(folder / "meshes") if name in ("000", "001", "002")]
     counts = run_batch(meshes, tmp_path / "out", hands=HANDS, params=params, scale=SCALE, workers=2, task=crashing)
     objects, _ = read_results(tmp_path / "out")
-    assert counts == {**counts, "ok": 2, "failed": 1} and len(list(attempts.iterdir())) == 2  # first try + one retry
-    failed = objects[objects.status == "failed"]
-    assert failed.object.tolist() == ["001"] and "worker died twice" in failed.reason.iloc[0]
+    assert counts == {**counts, "ok": 1, "failed": 2} and len(list(attempts.iterdir())) == 2  # first try + one retry
+    reasons = dict(zip(objects.object, objects.reason))
+    assert reasons["001"].startswith("WorkerCrashedError (after one retry)") and reasons["002"] == "AssertionError: "
     # failed objects run again next time; done ones are skipped
     again = run_batch(meshes, tmp_path / "out", hands=HANDS, params=params, scale=SCALE, workers=2)
-    assert again["skipped"] == 2 and again["ok"] == 1
+    assert again["skipped"] == 1 and again["ok"] == 2
+
+
+def test_an_object_too_big_for_the_hand_has_no_trials_file_and_no_rate(dataset):
+    folder, params = dataset
+    params = dataclasses.replace(params, simulate=dataclasses.replace(params.simulate, baseline_trials=-1))
+    row, trials = plan_object("000", folder / "meshes" / "000.obj", scale=0.45, seed=0, hands=HANDS, params=params)
+    assert trials is None and row["status"] == "ok" and row["candidates"] == 0 == row["mat_trials"]  # 3.6 m long
+    assert row["baseline_trials"] == 0  # as many as the MAT trials
+    assert math.isnan(row["force_closure_rate"]) and math.isnan(row["baseline_force_closure_rate"])  # no rate, not 0
 
 
 def test_the_same_command_joins_a_running_cluster(dataset, finished, tmp_path):
@@ -153,6 +166,8 @@ def test_find_meshes_names_by_stem_or_path_and_refuses_a_name_clash(tmp_path):
         (tmp_path / relative).parent.mkdir(exist_ok=True)
         (tmp_path / relative).write_text("")
     assert [name for name, _ in find_meshes(tmp_path)] == ["a_2", "b_2", "b_10"]  # stems clash: relative paths
+    (tmp_path / "a" / "_base.obj").write_text("")
+    assert [name for name, _ in find_meshes(tmp_path / "a")] == ["2", "mesh_base"]  # parquet readers skip _* files
     assert all(path.is_absolute() for _, path in find_meshes(tmp_path))
     (tmp_path / "c").mkdir()
     (tmp_path / "c" / "x y.obj").write_text("")

@@ -10,10 +10,9 @@ from mcap.reader import make_reader
 from rerun.chunk import RrdReader
 
 from pipeline.hands import get_hand
-from pipeline.logbook import file_digest, read_log
+from pipeline.logbook import file_digest, mcap_log, read_log
 from pipeline.params import Params, SampleParams, SimulateParams
 from pipeline.plan import run_chain, summary
-from pipeline.logbook import mcap_log
 from pipeline.recording import record_chain, rerun_recording
 
 HANDS = ["armar3", "barrett"]
@@ -92,6 +91,15 @@ def test_mcap_counts_and_one_trial_match_the_trials_table(recorded):
     assert sent["outcome"] == row.outcome and sent["hand"] == row.hand and sent["planner"] == row.planner
     assert sent["epsilon"] == pytest.approx(row.epsilon) and sent["joints"] == pytest.approx(list(row.joints))
     assert [sent[f"base_{axis}"] for axis in "xyz"] == pytest.approx([row.base_x, row.base_y, row.base_z])
+
+
+def test_mcap_messages_are_strict_json_without_nan(tmp_path):
+    with mcap_log(tmp_path / "nan.mcap", "simulate") as log:
+        log.log("/trials", {"epsilon": float("nan"), "base_x": np.float64("inf"), "joints": np.array([0.5, np.nan])})
+    with open(tmp_path / "nan.mcap", "rb") as stream:
+        raw = [message.data for _, _, message in make_reader(stream).iter_messages(topics=["/trials"])]
+    assert json.loads(raw[0], parse_constant=lambda name: pytest.fail(f"{name} in JSON")) == \
+        {"epsilon": None, "base_x": None, "joints": [0.5, None]}
 
 
 def test_an_interrupted_recording_leaves_nothing_under_its_name(tmp_path):
