@@ -31,8 +31,7 @@ import pandas as pd
 from .artefacts import SCHEMA_VERSION, content_key, write_table
 from .catalogue import natural_key
 from .errors import BadInputError, PipelineError
-from .logbook import file_digest
-from .objects import MESH_SUFFIXES
+from .objects import MESH_SUFFIXES, pybullet_path, source_key
 
 SUMMARY_COLUMNS = {"object": str, "status": str, "reason": str, "key": str, "source": str, "samples": "Int64",
                    "medial_spheres": "Int64", "reduced_spheres": "Int64", "candidates": "Int64", "mat_trials": "Int64",
@@ -52,11 +51,8 @@ def find_meshes(folder):
     -------
     list of (name, absolute Path)
     """
-    if str(folder).startswith("pybullet:"):
-        import pybullet_data
-
-        folder = Path(pybullet_data.getDataPath()) / str(folder).removeprefix("pybullet:")
-    folder = Path(folder)
+    folder = pybullet_path(str(folder).removeprefix("pybullet:")) if str(folder).startswith("pybullet:") \
+        else Path(folder)
     if not folder.is_dir():
         raise BadInputError(f"{folder}: not a folder")
     paths = sorted((path.resolve() for path in folder.rglob("*") if path.suffix.lower() in MESH_SUFFIXES
@@ -85,7 +81,7 @@ def object_key(path, *, scale, seed, hands, params):
 
     specs = [dataclasses.asdict(get_hand(hand)) for hand in hands]  # an edited spec file changes the key
     return content_key("batch", {"scale": scale, "seed": seed, "hands": specs, "params": used,
-                                 "schema": SCHEMA_VERSION}, file_digest(path)[0])
+                                 "schema": SCHEMA_VERSION}, source_key(str(path)))
 
 
 def plan_object(name, path, *, scale, seed, hands, params):

@@ -49,7 +49,7 @@ class McapLog:
                                                                 schema_id=schema)
         now = time.time_ns()
         self.writer.add_message(self.channels[topic], log_time=now, publish_time=now,
-                                data=json.dumps(_finite(message), default=_plain, allow_nan=False).encode())
+                                data=json.dumps(_finite(message), default=str, allow_nan=False).encode())
 
     def artefact(self, role, path):
         """An ``/artefacts`` message: ``role`` ("input" or "output"), the path, its size and SHA-256."""
@@ -84,14 +84,6 @@ def _finite(value):
     if isinstance(value, (np.ndarray, np.generic)):
         return _finite(value.tolist())
     return value
-
-
-def _plain(value):
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return str(value)
 
 
 @contextlib.contextmanager
