@@ -8,6 +8,7 @@ as a fraction of the shape's half thickness (box: 0.01 m; capsule: its radius 0.
 import json
 import time
 import tracemalloc
+from collections import Counter
 
 import numpy as np
 import pandas as pd
@@ -19,9 +20,10 @@ from .candidates import generate, generate_for_hands
 from .hands import HANDS
 from .mat import reconstruct
 from .medial_axis import medial_axis
-from .params import CandidatesParams, ClassifyParams, MatParams, MedialAxisParams, SampleParams
+from .params import CandidatesParams, ClassifyParams, MatParams, MedialAxisParams, SampleParams, SimulateParams
+from .legacy_trial import GraspWorld
 from .sampling import sample_object
-from .simulation import GraspWorld
+from .simulation import GraspEngine
 from .symmetry import classify
 from .trials import CHUNK, default_workers, run_trials
 
@@ -154,51 +156,54 @@ def trial_bench_surface():
 
 
 def run_trial_bench(*, trials=100, out=print):
-    """Grasp trials per second per hand on a ~17k-triangle duck: one core (per-trial median
-    and throughput) and every core (worker processes on 4x the trials, start-up included, and
-    the start-up alone); returns the rows."""
+    """Grasp trials per second per hand on a ~17k-triangle duck, the engine
+    (:mod:`pipeline.simulation`, batched) beside the one it replaced (:mod:`pipeline.legacy_trial`,
+    one trial at a time; box-link hands only) on the same random MAT candidates, one core; where
+    the new engine's time goes; its outcomes against the old one's (a confusion table); and every
+    core through the worker pool. Returns the rows."""
     surface, faces = trial_bench_surface()
     axis = medial_axis(surface, **vars(MedialAxisParams()))
     symmetry = classify(sphere_grid.build(reconstruct(surface, axis, **vars(MatParams()))), **vars(ClassifyParams()))
     cores = default_workers(0)
-    out(f"grasp trials on the duck ({faces} triangles, {len(surface.points)} samples), {trials} random MAT "
-        f"candidates per hand; all cores = {cores}")
-    out(f"{'hand':13} {'ms/trial':>9} {'trials/s':>9} {'trials/s':>9} {'trials/s':>9} {'start-up':>8} "
-        f"{'x paper':>8}  outcomes")
-    out(f"{'':13} {'median':>9} {'1 core':>9} {'all':>9} {'all, run':>9} {'s':>8} {'(1 core)':>8}  (1 core run)")
+    settings = SimulateParams().world_settings()
+    out(f"grasp trials on the duck ({faces} triangles), {trials} random MAT candidates per hand; all cores = {cores}")
+    out(f"{'hand':13} {'old /s':>7} {'new /s':>7} {'ratio':>6} {'new all':>8}  new: s in place/retreat/approach/"
+        "closing/contacts; outcomes new (old)")
     rows = []
     for name, hand in HANDS.items():
         table = generate(symmetry, hand)
         table = table.sample(min(trials, len(table)), random_state=0).reset_index(drop=True)
-        world = GraspWorld(surface, hand)
-        times, outcomes = [], []
-        start_all = time.perf_counter()
-        for grasp, approach, orient in zip(vectors(table, "grasp"), vectors(table, "approach"),
-                                           vectors(table, "orient")):
-            start = time.perf_counter()
-            outcomes.append(world.trial(grasp, approach, orient).outcome)
-            times.append(time.perf_counter() - start)
-        serial = len(table) / (time.perf_counter() - start_all)
-        world.close()
-        start = time.perf_counter()  # one chunk per worker: the rest of the time is start-up
-        run_trials(surface, [hand], [(0, pd.concat([table] * cores).head(cores * CHUNK))], {}, workers=cores)
-        startup = time.perf_counter() - start - CHUNK / serial
-        repeated = pd.concat([table] * 4, ignore_index=True)  # enough work to amortise the start-up
+        targets = (vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), list(table.preshape))
+        engine = GraspEngine(surface, hand, **settings)
         start = time.perf_counter()
-        run_trials(surface, [hand], [(0, repeated)], {}, workers=cores)
-        wall = time.perf_counter() - start
-        parallel, steady = len(repeated) / wall, len(repeated) / max(wall - startup, 1e-9)
-        median_ms = 1e3 * float(np.median(times))
-        counts = {outcome: outcomes.count(outcome) for outcome in sorted(set(outcomes))}
-        row = dict(hand=name, trials=len(table), median_ms=round(median_ms, 2), trials_per_s_1core=round(serial, 1),
-                   trials_per_s_all=round(parallel, 1), trials_per_s_all_steady=round(steady, 1), cores=cores,
-                   pool_startup_s=round(startup, 2),
-                   speedup_vs_paper=round(0.5 * serial, 1), outcomes=counts)
+        new = [result for first in range(0, len(table), CHUNK)
+               for result in engine.run(*(values[first:first + CHUNK] for values in targets))]
+        new_rate = len(table) / (time.perf_counter() - start)
+        old, old_rate = None, float("nan")
+        if hand.urdf is None:  # the old engine takes only box-link hands
+            world = GraspWorld(surface, hand)
+            start = time.perf_counter()
+            old = [world.trial(*target) for target in zip(*targets)]
+            old_rate = len(table) / (time.perf_counter() - start)
+            world.close()
+        repeated = pd.concat([table] * 2 * cores, ignore_index=True)
+        start = time.perf_counter()
+        run_trials(surface, [hand], [(0, repeated)], settings, workers=cores)
+        all_rate = len(repeated) / (time.perf_counter() - start)
+        outcomes = Counter(result.outcome for result in new)
+        confusion = Counter((result.outcome, before.outcome) for result, before in zip(new, old)) if old else {}
+        share = "/".join(f"{seconds:.1f}" for seconds in engine.seconds.values())
+        row = dict(hand=name, trials=len(table), old_per_s=round(old_rate, 1), new_per_s=round(new_rate, 1),
+                   ratio=round(new_rate / old_rate, 2) if old else None, new_all_cores_per_s=round(all_rate, 1),
+                   seconds=engine.seconds, outcomes=dict(outcomes),
+                   confusion={f"{a} | {b}": n for (a, b), n in sorted(confusion.items())})
         rows.append(row)
-        out(f"{name:13} {median_ms:9.1f} {serial:9.1f} {parallel:9.1f} {steady:9.1f} {startup:8.1f} "
-            f"{0.5 * serial:7.0f}x  "
-            + ", ".join(f"{key} {value}" for key, value in counts.items()))
-    out("paper: 0.5 s per trial (one core, 2011); target >= 100 trials/s per core")
+        out(f"{name:13} {old_rate:7.1f} {new_rate:7.1f} {row['ratio'] or float('nan'):6.2f} {all_rate:8.1f}  {share}; "
+            + ", ".join(f"{key} {value}" + (f" ({sum(n for (a, b), n in confusion.items() if b == key)})" if old else "")
+                        for key, value in sorted(outcomes.items())))
+        if old:
+            out("    new | old: " + ", ".join(f"{a} | {b}: {n}" for (a, b), n in sorted(confusion.items())))
+    out("paper: 0.5 s per trial (one core, 2011); target >= 300 trials/s per core")
     return rows
 
 

@@ -45,6 +45,7 @@ import numpy as np
 import yaml
 
 from .errors import BadParamsError
+from .urdf import read_urdf
 
 
 @dataclass(frozen=True)
@@ -93,6 +94,13 @@ class Hand:
     links: tuple = ()
     joints: tuple = ()
     urdf: str = None
+    base_link: str = None
+
+    def key(self):
+        """A hashable summary of everything that defines the hand (for caches)."""
+        return (self.name, self.urdf, self.base_link, self.approach, self.wrap, self.grasp_centre, self.fingers,
+                tuple(self.limits.items()), tuple((k, tuple(v.items())) for k, v in self.preshapes.items()),
+                self.links, self.joints)
 
     @property
     def default_preshape(self):
@@ -186,7 +194,24 @@ def _parallel_jaw():
                 fingers=tuple(fingers), limits=limits, links=tuple(links), joints=tuple(joints))
 
 
-HANDS = {hand.name: hand for hand in (_armar3(), _barrett(), _parallel_jaw())}
+def _franka():
+    """The Franka Emika Panda hand, read in place from pybullet_data's ``franka_panda/panda.urdf``
+    (the subtree from ``panda_hand``, its collision meshes ``meshes/collision/*.obj``). Its two
+    prismatic fingers open toward their upper limit (0.04 m each, the 80 mm stroke), so they close
+    with ratio -1; the second finger is the URDF's ``<mimic>`` of the first. The grasp centre is
+    the URDF's own ``panda_grasptarget`` (105 mm along +z, the approach axis)."""
+    import pybullet_data
+
+    from .urdf import read_urdf
+
+    urdf = str(Path(pybullet_data.getDataPath()) / "franka_panda" / "panda.urdf")
+    joint = read_urdf(urdf, base_link="panda_hand").joint("panda_finger_joint1")
+    return Hand("franka", 0.08, {"parallel": {"panda_finger_joint1": joint.limits[1]}},
+                grasp_centre=(0.0, 0.0, 0.105), fingers=(Finger(("panda_finger_joint1",), (-1.0,)),),
+                limits={"panda_finger_joint1": joint.limits}, urdf=urdf, base_link="panda_hand")
+
+
+HANDS = {hand.name: hand for hand in (_armar3(), _barrett(), _parallel_jaw(), _franka())}
 SPEC_SUFFIXES = (".yaml", ".yml", ".toml")
 
 
@@ -227,13 +252,16 @@ def urdf_text(hand):
 
 def spec_dict(hand, urdf_name):
     """The YAML-ready spec of ``hand`` referring to the URDF file ``urdf_name``."""
-    return {
+    spec = {
         "name": hand.name, "urdf": urdf_name, "max_graspable_diameter": hand.max_graspable_diameter,
         "approach": list(hand.approach), "wrap": list(hand.wrap), "grasp_centre": list(hand.grasp_centre),
         "fingers": [{"joints": list(finger.joints), "ratios": list(finger.ratios)} for finger in hand.fingers],
         "limits": {joint: list(bounds) for joint, bounds in hand.limits.items()},
         "preshapes": {name: dict(values) for name, values in hand.preshapes.items()},
     }
+    if hand.base_link:
+        spec["base_link"] = hand.base_link
+    return spec
 
 
 def export_hand(hand, folder):
@@ -241,9 +269,12 @@ def export_hand(hand, folder):
     from .artefacts import atomic_write
 
     folder = Path(folder)
-    urdf = urdf_text(hand).encode() if hand.urdf is None else Path(hand.urdf).read_bytes()
-    atomic_write(folder / f"{hand.name}.urdf", lambda stream: stream.write(urdf))
-    text = yaml.safe_dump(spec_dict(hand, f"{hand.name}.urdf"), sort_keys=False, default_flow_style=None).encode()
+    if hand.urdf is None:
+        urdf_name = f"{hand.name}.urdf"
+        atomic_write(folder / urdf_name, lambda stream: stream.write(urdf_text(hand).encode()))
+    else:  # a file hand's URDF is referred to where it is (its meshes sit beside it)
+        urdf_name = str(Path(hand.urdf).resolve())
+    text = yaml.safe_dump(spec_dict(hand, urdf_name), sort_keys=False, default_flow_style=None).encode()
     atomic_write(folder / f"{hand.name}.yaml", lambda stream: stream.write(text))
     return folder / f"{hand.name}.yaml"
 
@@ -262,19 +293,33 @@ def load_hand(path):
     if not isinstance(raw, dict):
         raise BadParamsError(f"{path}: hand spec must be a mapping")
     required = ("name", "urdf", "max_graspable_diameter", "approach", "wrap", "grasp_centre", "fingers",
-                "limits", "preshapes")
+                "preshapes")
+    optional = ("limits", "base_link")  # limits default to the URDF's, base_link to its root
     missing = [key for key in required if key not in raw]
     if missing:
         raise BadParamsError(f"{path}: hand spec lacks {', '.join(missing)}")
-    unknown = sorted(set(raw) - set(required))
+    unknown = sorted(set(raw) - set(required) - set(optional))
     if unknown:
         raise BadParamsError(f"{path}: hand spec has unknown key {unknown[0]!r}")
     urdf = (path.parent / raw["urdf"]).resolve()
     if not urdf.is_file():
         raise BadParamsError(f"{path}: URDF {raw['urdf']!r} not found")
+    base_link = None if raw.get("base_link") is None else str(raw["base_link"])
+    try:
+        robot = read_urdf(urdf, base_link=base_link)
+    except BadParamsError as err:
+        raise BadParamsError(f"{path}: {err}") from None
     try:
         fingers = tuple(Finger(tuple(map(str, f["joints"])), tuple(map(float, f["ratios"]))) for f in raw["fingers"])
-        limits = {str(joint): (float(lo), float(hi)) for joint, (lo, hi) in raw["limits"].items()}
+        movable = {joint.name: joint for joint in robot.joints if joint.kind != "fixed" and joint.mimic is None}
+        declared = [joint for finger in fingers for joint in finger.joints]
+        unknown_joint = next((joint for joint in declared if joint not in movable), None)
+        if unknown_joint is not None:
+            raise BadParamsError(f"{path}: finger joint {unknown_joint!r} is not a movable, non-mimic joint of "
+                                 f"{Path(urdf).name} below {robot.root!r}")
+        # the spec's limits in its order (the trials' joint order), the URDF's for joints it leaves out
+        limits = {str(joint): (float(lo), float(hi)) for joint, (lo, hi) in (raw.get("limits") or {}).items()}
+        limits.update({joint: movable[joint].limits for joint in declared if joint not in limits})
         preshapes = {str(name): {str(j): float(v) for j, v in (values or {}).items()}
                      for name, values in raw["preshapes"].items()}
         approach, wrap, centre = (tuple(float(v) for v in raw[key]) for key in ("approach", "wrap", "grasp_centre"))
@@ -282,9 +327,13 @@ def load_hand(path):
     except (TypeError, ValueError, KeyError, AttributeError) as err:
         raise BadParamsError(f"{path}: malformed hand spec ({err})") from None
     problems = _spec_problems(fingers, limits, preshapes, approach, wrap, centre, diameter)
+    unknown_joint = next((joint for joint in limits if robot.joint(joint) is None), None)
+    if unknown_joint is not None:
+        problems.insert(0, f"joint {unknown_joint!r} is not in {Path(urdf).name} below {robot.root!r}")
     if problems:
         raise BadParamsError(f"{path}: {problems[0]}")
-    return Hand(str(raw["name"]), diameter, preshapes, approach, wrap, centre, fingers, limits, urdf=str(urdf))
+    return Hand(str(raw["name"]), diameter, preshapes, approach, wrap, centre, fingers, limits, urdf=str(urdf),
+                base_link=base_link)
 
 
 def _spec_problems(fingers, limits, preshapes, approach, wrap, centre, diameter):

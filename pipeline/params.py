@@ -171,13 +171,27 @@ class SimulateParams:
     torsional_friction_m: float = 0.0
     """Soft-finger torsional friction (m); 0 = point contacts with friction, as in the paper."""
     contact_tolerance_m: float = 0.002
-    """A link this close to the object touches it: it stops, and its mesh points are contacts."""
+    """A link this close to the object (exact mesh distance) touches it: it stops, and its
+    touching pairs are contacts."""
     retract_step_m: float = 0.005
+    """Retreat step along -P_d until the hand is clear (then it comes back in fine steps)."""
     retract_max_m: float = 0.2
     """A candidate whose hand is not clear after this retreat is a ``collision``."""
+    approach_step_m: float = 0.001
+    """Largest step of the way back to contact after the retreat; at most the contact tolerance."""
     near_m: float = 0.004
-    """Below this a closing link's distance is measured exactly against the samples; above it
-    a cheaper voxel bound sets the step."""
+    """Distances up to this are exact mesh queries; beyond, a signed distance grid's bound sets
+    the (conservative) step. At least the contact tolerance."""
+    max_close_steps: int = 200
+    """Closing steps before a trial whose fingers still move is given up (outcome ``step_cap``)."""
+    link_point_spacing_m: float = 0.003
+    """Largest gap between the points on a hand link's edges that are measured against the mesh."""
+    coplanar_deg: float = 5.0
+    """Contacts of one link whose normals agree within this angle form one region (GraspIt)."""
+    max_link_contacts: int = 4
+    """Most contacts kept per link (its regions' hull corners, farthest first)."""
+    grid_cells: int = 40
+    """Nodes of the object's signed distance grid along its longest side (steps only)."""
     workers: int = 0
     """Trial processes; 0 = every core."""
 
@@ -187,15 +201,22 @@ class SimulateParams:
         _require(self.mu >= 0, "simulate", "mu", "must be >= 0")
         _require(self.cone_edges >= 3, "simulate", "cone_edges", "must be >= 3")
         _require(self.torsional_friction_m >= 0, "simulate", "torsional_friction_m", "must be >= 0")
-        for key in ("contact_tolerance_m", "retract_step_m", "retract_max_m", "near_m"):
+        for key in ("contact_tolerance_m", "retract_step_m", "retract_max_m", "approach_step_m", "near_m",
+                    "link_point_spacing_m", "coplanar_deg"):
             _require(getattr(self, key) > 0, "simulate", key, "must be > 0")
+        _require(self.approach_step_m <= self.contact_tolerance_m, "simulate", "approach_step_m",
+                 "must be at most contact_tolerance_m (a step must not jump past a touch)")
+        _require(self.near_m >= self.contact_tolerance_m, "simulate", "near_m", "must be at least contact_tolerance_m")
+        _require(self.max_close_steps >= 1, "simulate", "max_close_steps", "must be >= 1")
+        _require(self.max_link_contacts >= 2, "simulate", "max_link_contacts", "must be >= 2")
+        _require(self.grid_cells >= 8, "simulate", "grid_cells", "must be >= 8")
         _require(self.workers >= 0, "simulate", "workers", "must be >= 0")
 
     def world_settings(self):
-        """Keyword arguments of :class:`pipeline.simulation.GraspWorld`."""
-        return {key: getattr(self, key) for key in ("mu", "cone_edges", "torsional_friction_m",
-                                                    "contact_tolerance_m", "retract_step_m", "retract_max_m",
-                                                    "near_m")}
+        """Keyword arguments of :class:`pipeline.simulation.GraspEngine` (its TrialSettings)."""
+        from .simulation import TrialSettings
+
+        return {key: getattr(self, key) for key in TrialSettings.__dataclass_fields__}
 
 
 @dataclass(frozen=True)

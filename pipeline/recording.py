@@ -130,7 +130,8 @@ def log_trials(stream, root, surface, hand, trials, contacts, *, settings=None):
     from scipy.spatial.transform import Rotation
 
     from .quality import friction_cone
-    from .simulation import OUTCOMES, GraspWorld
+    from .kinematics import hand_model
+    from .simulation import OUTCOMES, hand_boxes
 
     settings = settings or {}
     count, path = len(trials), f"{root}/trials/{hand.name}"
@@ -140,25 +141,22 @@ def log_trials(stream, root, surface, hand, trials, contacts, *, settings=None):
     placed = np.isfinite(base).all(axis=1) & np.isfinite(quaternion).all(axis=1)  # not an early error
     colours = np.array([OUTCOME_COLOURS.get(str(outcome), (0, 0, 0)) for outcome in trials.outcome], np.uint8)
     approach_start = base + trials.retract_m.to_numpy()[:, None] * vectors(trials, "approach")
-    world = GraspWorld(surface, hand, **settings)
-    try:
-        open_joints = hand.preshape()
-        for name, positions in (("approach", approach_start), ("retracted", base), ("closed", base)):
-            boxes = [world.link_boxes(positions[number], quaternion[number],
-                                      dict(zip(hand.limits, trials.joints.iloc[number])) if name == "closed"
-                                      else open_joints) for number in np.flatnonzero(placed)]
-            links = len(world.boxes[2])
-            centres = np.concatenate([box[0] for box in boxes]) if boxes else np.zeros((0, 3))
-            rotations = np.concatenate([box[1] for box in boxes]) if boxes else np.zeros((0, 3, 3))
-            # the closed hand solid, its approach and retracted poses as outlines behind it
-            fill = rr.components.FillMode.Solid if name == "closed" else rr.components.FillMode.MajorWireframe
-            stream.log(f"{path}/hand/{name}", rr.Boxes3D.from_fields(fill_mode=fill), static=True)
-            stream.send_columns(f"{path}/hand/{name}", indexes=steps, columns=rr.Boxes3D.columns(
-                centers=centres, half_sizes=np.tile(world.boxes[2], (len(boxes), 1)),
-                quaternions=Rotation.from_matrix(rotations).as_quat() if len(rotations) else np.zeros((0, 4)),
-                colors=np.repeat(colours[placed], links, axis=0)).partition(np.where(placed, links, 0)))
-    finally:
-        world.close()
+    model = hand_model(hand, spacing=settings.get("link_point_spacing_m", 0.003))
+    open_joints = hand.preshape()
+    for name, positions in (("approach", approach_start), ("retracted", base), ("closed", base)):
+        boxes = [hand_boxes(model, positions[number], quaternion[number],
+                            dict(zip(hand.limits, trials.joints.iloc[number])) if name == "closed"
+                            else open_joints) for number in np.flatnonzero(placed)]
+        links = len(model.box_half)
+        centres = np.concatenate([box[0] for box in boxes]) if boxes else np.zeros((0, 3))
+        rotations = np.concatenate([box[1] for box in boxes]) if boxes else np.zeros((0, 3, 3))
+        # the closed hand solid, its approach and retracted poses as outlines behind it
+        fill = rr.components.FillMode.Solid if name == "closed" else rr.components.FillMode.MajorWireframe
+        stream.log(f"{path}/hand/{name}", rr.Boxes3D.from_fields(fill_mode=fill), static=True)
+        stream.send_columns(f"{path}/hand/{name}", indexes=steps, columns=rr.Boxes3D.columns(
+            centers=centres, half_sizes=np.tile(model.box_half, (len(boxes), 1)),
+            quaternions=Rotation.from_matrix(rotations).as_quat() if len(rotations) else np.zeros((0, 4)),
+            colors=np.repeat(colours[placed], links, axis=0)).partition(np.where(placed, links, 0)))
     contacts = contacts.sort_values("trial", kind="stable")
     per_trial = np.bincount(contacts.trial.to_numpy(), minlength=count) if len(contacts) else np.zeros(count, int)
     position, normal = contacts[["x", "y", "z"]].to_numpy(), contacts[["nx", "ny", "nz"]].to_numpy()

@@ -14,11 +14,25 @@ def closed_joints(hand):
     until its first joint reaches a limit."""
     joints = hand.preshape()
     for finger in hand.fingers:
-        travel = min((hand.limits[joint][1] - joints[joint]) / ratio
-                     for joint, ratio in zip(finger.joints, finger.ratios) if ratio > 0)
+        def room(joint, ratio):  # closing parameter left until the joint's limit
+            lower, upper = hand.limits[joint]
+            return (upper - joints[joint]) / ratio if ratio > 0 else (lower - joints[joint]) / ratio
+
+        travel = min(room(joint, ratio) for joint, ratio in zip(finger.joints, finger.ratios) if ratio != 0)
         for joint, ratio in zip(finger.joints, finger.ratios):
-            joints[joint] = min(joints[joint] + ratio * travel, hand.limits[joint][1])
+            lower, upper = hand.limits[joint]
+            joints[joint] = float(np.clip(joints[joint] + ratio * travel, lower, upper))
     return joints
+
+
+def _with_mimics(hand, joints):
+    """``joints`` plus the values of the URDF's mimic joints (pybullet ignores <mimic>)."""
+    from .kinematics import hand_model
+
+    model = hand_model(hand)
+    if not model.mimics:
+        return joints
+    return {**model.joint_values([joints[name] for name in model.joints]), **joints}
 
 
 def render_hand(hand, joints, *, base=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), surface=None, size=(480, 480),
@@ -39,7 +53,7 @@ def render_hand(hand, joints, *, base=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), s
         rotation = np.array(pybullet.getMatrixFromQuaternion(base[1])).reshape(3, 3)
         # frame the open hand, in its own frame, so open and closed pictures match
         pybullet.resetBasePositionAndOrientation(body, (0, 0, 0), (0, 0, 0, 1), physicsClientId=client)
-        for joint, value in hand.preshape().items():
+        for joint, value in _with_mimics(hand, hand.preshape()).items():
             pybullet.resetJointState(body, names[joint], value, physicsClientId=client)
         boxes = np.array([pybullet.getAABB(body, index, physicsClientId=client) for index in [-1, *names.values()]])
         low, high = boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)
@@ -49,7 +63,7 @@ def render_hand(hand, joints, *, base=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), s
         eye = target + 1.7 * np.linalg.norm(high - low) * (0.55 * np.asarray(hand.wrap) + 0.75 * side + 0.35 * up)
         target, eye, up = (rotation @ target + base[0], rotation @ eye + base[0], rotation @ up)
         pybullet.resetBasePositionAndOrientation(body, base[0], base[1], physicsClientId=client)
-        for joint, value in joints.items():
+        for joint, value in _with_mimics(hand, joints).items():
             pybullet.resetJointState(body, names[joint], value, physicsClientId=client)
         if frame == "scene":  # fingers in profile, object frame z up, framed on the hand and the mesh near it
             boxes = np.array([pybullet.getAABB(body, index, physicsClientId=client) for index in [-1, *names.values()]])
@@ -90,11 +104,9 @@ def render_open_closed(hand, path, *, surface=None, target=None, size=(480, 480)
     if surface is None:
         pictures = [render_hand(hand, hand.preshape(), size=size), render_hand(hand, closed_joints(hand), size=size)]
     else:
-        from .simulation import GraspWorld
+        from .simulation import GraspEngine
 
-        world = GraspWorld(surface, hand)
-        result = world.trial(*target)
-        world.close()
+        result = GraspEngine(surface, hand).trial(*target)
         base = (result.base_position, result.base_orientation)
         closed = dict(zip(hand.limits, result.joint_positions))
         pictures = [render_hand(hand, hand.preshape(), base=base, surface=surface, size=size),
@@ -105,7 +117,7 @@ def render_open_closed(hand, path, *, surface=None, target=None, size=(480, 480)
 
 
 def render_builtin_hands(folder, *, size=(400, 400)):
-    """``<folder>/<hand>.png`` for every built-in hand: the parallel jaw on a 4 cm cube, the
+    """``<folder>/<hand>.png`` for every built-in hand: the parallel jaws on a 4 cm cube, the
     others on a 5 cm cylinder, approached orthogonally; returns the paths."""
     from pathlib import Path
 
@@ -120,5 +132,5 @@ def render_builtin_hands(folder, *, size=(400, 400)):
     scenes = {"box": surface("box", extents=[0.04] * 3), "cylinder": surface("cylinder", radius=0.025, height=0.12)}
     target = ([0.0, 0.0, 0.01], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0])
     return [render_open_closed(hand, Path(folder) / f"{name}.png", size=size, target=target,
-                               surface=scenes["box" if name == "parallel_jaw" else "cylinder"])
+                               surface=scenes["box" if name in ("parallel_jaw", "franka") else "cylinder"])
             for name, hand in HANDS.items()]

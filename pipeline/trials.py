@@ -14,13 +14,16 @@ trials (``trials.parquet``): one row per trial; ``planner`` (mat | baseline), ``
 ``candidate_id`` (the candidates table's id; the draw number for the baseline), ``sphere_index``
 and ``sphere_class`` (-1 and "surface" for the baseline), ``preshape``, ``grasp_*``,
 ``approach_*``, ``orient_*`` (the target), ``outcome`` (one of :data:`OUTCOMES`), ``epsilon``,
-``volume``, ``contacts``, ``retract_m``, ``base_*`` (position, m) and ``base_q*`` (quaternion
-x, y, z, w) of the hand after retract, ``joints`` (closed joint values in the hand's ``limits``
-order), ``message`` (the error, if any).
+``volume``, ``contacts``, ``retract_m`` (how far back from P_g the hand closed),
+``approach_m`` (how far it came back to contact after retreating clear), ``base_*`` (position,
+m) and ``base_q*`` (quaternion x, y, z, w) of the hand's URDF base frame as it closed,
+``joints`` (closed joint values in the hand's ``limits`` order), ``close_steps``, ``touched``
+(names of the links in contact), ``finger_stops`` (per finger: contact, limit, step_cap),
+``message`` (why a candidate could not be tried, if so).
 
 contacts (``contacts.parquet``): one row per contact; ``trial`` (row number in trials),
-``link`` (pybullet link index, -1 the palm), ``x, y, z`` (m) and ``nx, ny, nz`` (outward unit
-normal).
+``link`` (the link's index in the hand model, 0 the base link, the palm), ``x, y, z`` (m) and
+``nx, ny, nz`` (the object's outward unit normal).
 """
 
 import concurrent.futures
@@ -31,7 +34,7 @@ import numpy as np
 import pandas as pd
 
 from .arrays import vectors
-from .simulation import OUTCOMES, run_chunk, start_worker, stop_worker
+from .simulation import OUTCOMES, check_simulable, run_chunk, start_worker, stop_worker
 
 CHUNK = 32
 
@@ -78,7 +81,7 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
     tables : list of (int, pandas.DataFrame)
         Each table with the number of its hand in ``hands``.
     settings : dict
-        Keyword arguments of :class:`GraspWorld`.
+        Keyword arguments of :class:`pipeline.simulation.GraspEngine`.
     workers : int
         Processes; 1 runs in this process. Results do not depend on it.
     progress : callable(int, int), optional
@@ -138,7 +141,7 @@ def simulate(surface, candidates, hands, *, spheres_per_object=200, baseline_tri
     seed : int
     workers : int
     settings : dict, optional
-        Keyword arguments of :class:`GraspWorld`.
+        Keyword arguments of :class:`pipeline.simulation.GraspEngine`.
     progress : callable(int, int), optional
         Called with the number of trials just finished and the total.
 
@@ -146,6 +149,7 @@ def simulate(surface, candidates, hands, *, spheres_per_object=200, baseline_tri
     -------
     trials, contacts : pandas.DataFrame (see the module docstring)
     """
+    check_simulable(surface)
     jobs = []
     for number, hand in enumerate(hands):
         # the same seeds for every hand: a hand's trials do not depend on the other hands run with it
@@ -171,6 +175,7 @@ def _tables(blocks):
         frame["volume"] = [result.volume for result in results]
         frame["contacts"] = [len(result.contact_points) for result in results]
         frame["retract_m"] = [result.retract_m for result in results]
+        frame["approach_m"] = [result.approach_m for result in results]
         base = np.array([result.base_position for result in results]).reshape(-1, 3)
         quaternion = np.array([result.base_orientation for result in results]).reshape(-1, 4)
         for k, axis in enumerate("xyz"):
@@ -178,6 +183,9 @@ def _tables(blocks):
         for k, axis in enumerate("xyzw"):
             frame[f"base_q{axis}"] = quaternion[:, k]
         frame["joints"] = [list(result.joint_positions) for result in results]
+        frame["close_steps"] = np.array([result.close_steps for result in results], np.int64)
+        frame["touched"] = [list(result.touched) for result in results]
+        frame["finger_stops"] = [list(result.finger_stops) for result in results]
         frame["message"] = [result.message for result in results]
         trial_rows.append(frame)
         for number, result in enumerate(results):

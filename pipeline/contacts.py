@@ -1,0 +1,93 @@
+"""The contact model of a grasp trial, as the peers' tools define it (facts.md 8).
+
+1. Every hand link, the palm included, whose distance to the object
+   (:func:`pipeline.proximity.measure`) is within the contact tolerance touches it, and every
+   touching pair of that measure is a contact candidate: a link surface point's closest mesh
+   point with the touched triangle's outward normal, or a mesh vertex near the link with the
+   link face's normal reversed (off a link edge or corner, where the link has no face normal,
+   the vertex's own area-weighted normal). So a link the closing rule stopped always has
+   contacts.
+2. Per link, candidates whose normals agree within ``coplanar_deg`` form one contact region
+   (connected by agreement, so a smoothly curved patch is one region). As GraspIt! does, a
+   region is replaced by the corners of its 2D convex hull in the plane across its mean normal:
+   a face contact becomes its polygon's corners, a line contact its two ends, a point stays a
+   point. Each corner keeps its own normal. A link with more than ``max_corners`` corners in all
+   (a facetted curved patch, several regions) keeps that many, chosen farthest first: the 6D
+   wrench hull's cost grows steeply with its points, while the patch's extent is what resists a
+   torque.
+
+On a tessellated curved surface the normal is the touched facet's: it differs from the smooth
+surface's by at most half the angle between neighbouring facets (under a degree on the built-in
+objects' meshes).
+"""
+
+import numpy as np
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import ConvexHull, QhullError
+
+
+def region_corners(points, normals, *, coplanar_deg=5.0, merge_m=1e-4, max_corners=4):
+    """Indices of the contacts that represent one link's contact candidates.
+
+    Parameters
+    ----------
+    points : (n, 3) float, metres
+    normals : (n, 3) float, outward unit normals
+    coplanar_deg : float
+        Largest angle (degrees) between normals of one region.
+    merge_m : float
+        Candidates closer than this (m) with agreeing normals count once.
+    max_corners : int
+        Most contacts kept for the link, farthest first.
+
+    Returns
+    -------
+    (k,) int, sorted: the hull corners of every region.
+    """
+    if len(points) <= 2:
+        return np.arange(len(points))
+    agree = normals @ normals.T >= np.cos(np.radians(coplanar_deg))
+    _, region = connected_components(agree, directed=False)
+    keep = []
+    for label in np.unique(region):
+        members = np.flatnonzero(region == label)
+        corners = members[_hull_2d(points[members], normals[members].mean(axis=0), merge_m)]
+        keep += list(corners)
+    return np.sort(_farthest(points, np.array(keep, dtype=np.int64), max_corners))
+
+
+def _farthest(points, indices, count):
+    """At most ``count`` of ``indices``: the first, then each time the one farthest from those kept."""
+    if len(indices) <= count:
+        return indices
+    chosen = [indices[0]]
+    gap = np.linalg.norm(points[indices] - points[indices[0]], axis=1)
+    while len(chosen) < count:
+        best = int(gap.argmax())
+        chosen.append(indices[best])
+        gap = np.minimum(gap, np.linalg.norm(points[indices] - points[indices[best]], axis=1))
+    return np.array(chosen)
+
+
+def _hull_2d(points, normal, merge_m):
+    """Corners of the 2D convex hull of points across ``normal``: two ends when they are on a
+    line, one when they are (nearly) one point."""
+    if len(points) == 1:
+        return np.array([0])
+    normal = normal / np.linalg.norm(normal)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    first = np.cross(normal, helper)
+    first /= np.linalg.norm(first)
+    plane = np.column_stack([(points - points[0]) @ first, (points - points[0]) @ np.cross(normal, first)])
+    centred = plane - plane.mean(axis=0)
+    spread = np.linalg.svd(centred, compute_uv=False)
+    if spread[0] <= merge_m:
+        return np.array([0])
+    if spread[1] > merge_m * np.sqrt(len(points)):
+        try:
+            return np.sort(ConvexHull(plane).vertices)
+        except QhullError:
+            pass
+    direction = np.linalg.svd(centred, full_matrices=False)[2][0]
+    along = centred @ direction
+    return np.unique([along.argmin(), along.argmax()])

@@ -1,0 +1,155 @@
+"""The exact-mesh trial engine (issue 13): contacts from the one distance measure, thin walls,
+face normals, URDF hands with mesh collision shapes and mimic joints, batch independence."""
+
+import dataclasses
+import functools
+
+import numpy as np
+import pytest
+import yaml
+
+from pipeline.artefacts import SurfaceSamples
+from pipeline.errors import BadInputError, BadParamsError
+from pipeline.hands import HANDS, export_hand, get_hand
+from pipeline.kinematics import hand_model, link_poses
+from pipeline.params import SampleParams
+from pipeline.sampling import sample_object
+from pipeline.simulation import GraspEngine, check_simulable
+
+
+@functools.lru_cache(maxsize=None)
+def surface(source, **shape):
+    return sample_object(source, scale=1.0, shape=shape or None, rng=np.random.default_rng(5), source_key=source,
+                         **dataclasses.asdict(SampleParams()))
+
+
+def plate():
+    return surface("primitive:box", extents=(0.2, 0.1, 0.006))
+
+
+def test_jaw_pinching_a_thin_plate_edge_is_force_closure_everywhere_with_the_face_normals():
+    """The 6 mm plate's edge y = 0.05 m, pinched across its thickness at 7 places along it: the
+    pads lie flat on the two faces next to the edge (closing along z = P_d x P_o)."""
+    engine = GraspEngine(plate(), HANDS["parallel_jaw"])
+    places = np.linspace(-0.06, 0.06, 7)
+    grasp = np.column_stack([places, np.full(7, 0.045), np.zeros(7)])
+    results = engine.run(grasp, np.tile([0.0, -1.0, 0.0], (7, 1)), np.tile([1.0, 0.0, 0.0], (7, 1)), [None] * 7)
+    assert [result.outcome for result in results] == ["force_closure"] * 7
+    for result in results:
+        assert set(result.touched) == {"left_pad", "right_pad"}
+        # every contact on a face (z = +-3 mm) with that face's normal, within 1 degree
+        np.testing.assert_allclose(np.abs(result.contact_points[:, 2]), 0.003, atol=1e-7)
+        assert (np.abs(result.contact_normals[:, 2]) >= np.cos(np.radians(1.0))).all()
+        assert (np.sign(result.contact_normals[:, 2]) == np.sign(result.contact_points[:, 2])).all()
+
+
+@pytest.mark.parametrize("name", sorted(HANDS))
+def test_a_finger_that_stopped_on_contact_always_has_a_link_in_contact(name):
+    """Property over random candidates on a cylinder and a box: a finger whose stop is
+    'contact' has a link it moves among the trial's touched links, with contact rows."""
+    rng = np.random.default_rng(3)
+    for shape in (surface("primitive:cylinder", radius=0.025, height=0.12),
+                  surface("primitive:box", extents=(0.05, 0.03, 0.08))):
+        count = 12
+        grasp = rng.normal(0.0, 0.01, (count, 3))
+        approach = rng.normal(size=(count, 3))
+        approach /= np.linalg.norm(approach, axis=1, keepdims=True)
+        orient = np.cross(approach, rng.normal(size=(count, 3)))
+        orient /= np.linalg.norm(orient, axis=1, keepdims=True)
+        engine = GraspEngine(shape, HANDS[name])
+        model = engine.model
+        stopped = 0
+        for result in engine.run(grasp, approach, orient, [None] * count):
+            for finger, stop in enumerate(result.finger_stops):
+                if stop != "contact":
+                    continue
+                stopped += 1
+                moved = {model.links[link] for link in np.flatnonzero(model.moves[model.finger == finger].any(axis=0))}
+                assert moved & set(result.touched), (result.finger_stops, result.touched)
+                links = {model.links[link] for link in result.contact_links}
+                assert moved & links
+        assert stopped > 0
+
+
+def test_franka_hand_from_pybullet_data_closes_on_a_cube_with_both_fingers():
+    cube = surface("primitive:box", extents=(0.04, 0.04, 0.04))
+    franka = HANDS["franka"]
+    assert franka.urdf.endswith("franka_panda/panda.urdf") and franka.max_graspable_diameter == 0.08
+    result = GraspEngine(cube, franka).trial([0, 0, 0], [0, 0, -1], [1, 0, 0])
+    assert result.outcome == "force_closure" and set(result.touched) == {"panda_leftfinger", "panda_rightfinger"}
+    # the fingers close toward the lower limit (ratio -1) from 0.04 m open to about 0.02 m on the cube
+    assert 0.018 <= result.joint_positions[0] <= 0.0215
+    model = hand_model(franka)
+    assert model.joint_values(result.joint_positions)["panda_finger_joint2"] == result.joint_positions[0]
+
+
+def test_franka_from_an_exported_spec_gives_the_same_trial(tmp_path):
+    cube = surface("primitive:box", extents=(0.04, 0.04, 0.04))
+    user = get_hand(str(export_hand(HANDS["franka"], tmp_path)))
+    assert user.base_link == "panda_hand" and user.limits == HANDS["franka"].limits
+    mine, theirs = (GraspEngine(cube, hand).trial([0, 0, 0], [0, 0, -1], [1, 0, 0]) for hand in (user, HANDS["franka"]))
+    assert (mine.outcome, mine.joint_positions, mine.epsilon) == (theirs.outcome, theirs.joint_positions, theirs.epsilon)
+
+
+def test_a_mimic_joint_closes_with_its_ratio(tmp_path):
+    """The jaw's right pad made a <mimic> of the left with multiplier 0.5: closing on nothing,
+    the left slide reaches its limit and the right pad has moved half as far."""
+    spec_path = export_hand(HANDS["parallel_jaw"], tmp_path)
+    urdf = (tmp_path / "parallel_jaw.urdf").read_text()
+    urdf = urdf.replace('<joint name="right_slide" type="prismatic">',
+                        '<joint name="right_slide" type="prismatic"><mimic joint="left_slide" multiplier="0.5"/>')
+    (tmp_path / "parallel_jaw.urdf").write_text(urdf)
+    spec = yaml.safe_load(spec_path.read_text())
+    spec["fingers"] = [{"joints": ["left_slide"], "ratios": [1.0]}]
+    spec["limits"] = {"left_slide": [0.0, 0.04]}
+    spec_path.write_text(yaml.safe_dump(spec))
+    hand = get_hand(str(spec_path))
+    cube = surface("primitive:box", extents=(0.04, 0.04, 0.04))
+    result = GraspEngine(cube, hand).trial([1.0, 0, 0], [0, 0, -1], [1, 0, 0])  # far from the cube
+    assert result.outcome == "no_contact" and result.joint_positions == (0.04,) and result.finger_stops == ("limit",)
+    model = hand_model(hand)
+    open_poses, closed_poses = (link_poses(model, np.eye(4)[None], np.array([[value]]))[0] for value in (0.0, 0.04))
+    moved = np.abs(closed_poses[:, 1, 3] - open_poses[:, 1, 3])
+    left, right = model.links.index("left_pad"), model.links.index("right_pad")
+    assert moved[left] == pytest.approx(0.04) and moved[right] == pytest.approx(0.02)
+
+
+def test_a_spec_naming_a_joint_its_urdf_lacks_is_refused_in_one_line(tmp_path):
+    spec_path = export_hand(HANDS["barrett"], tmp_path)
+    spec = yaml.safe_load(spec_path.read_text())
+    spec["fingers"][0]["joints"][0] = "f9_prox"
+    spec_path.write_text(yaml.safe_dump(spec))
+    with pytest.raises(BadParamsError, match="'f9_prox' is not a movable") as error:
+        get_hand(str(spec_path))
+    assert str(error.value).startswith(str(spec_path)) and "\n" not in str(error.value)
+    spec["fingers"][0]["joints"][0] = "f1_prox"
+    spec["base_link"] = "wrist"
+    spec_path.write_text(yaml.safe_dump(spec))
+    with pytest.raises(BadParamsError, match="base link 'wrist' is not in the URDF") as error:
+        get_hand(str(spec_path))
+    assert str(error.value).startswith(str(spec_path))
+
+
+def test_results_do_not_depend_on_the_batch():
+    cylinder = surface("primitive:cylinder", radius=0.025, height=0.12)
+    rng = np.random.default_rng(8)
+    grasp = rng.normal(0.0, 0.01, (10, 3))
+    approach = np.column_stack([np.cos(np.arange(10.0)), np.sin(np.arange(10.0)), 0.2 * rng.normal(size=10)])
+    approach /= np.linalg.norm(approach, axis=1, keepdims=True)
+    orient = np.cross(approach, [0.0, 1.0, 0.0])
+    orient /= np.linalg.norm(orient, axis=1, keepdims=True)
+    engine = GraspEngine(cylinder, HANDS["barrett"])
+    together = engine.run(grasp, approach, orient, [None] * 10)
+    alone = [engine.trial(*target) for target in zip(grasp, approach, orient)]
+    for one, other in zip(together, alone):
+        assert (one.outcome, one.epsilon, one.joint_positions, one.touched) == \
+            (other.outcome, other.epsilon, other.joint_positions, other.touched)
+
+
+def test_a_point_cloud_is_refused_before_any_trial(tmp_path):
+    mesh = surface("primitive:box", extents=(0.04, 0.04, 0.04))
+    cloud = dataclasses.replace(mesh, vertices=np.zeros((0, 3)), faces=np.zeros((0, 3), np.int64),
+                                source="scan.ply")
+    assert isinstance(cloud, SurfaceSamples)
+    with pytest.raises(BadInputError, match="scan.ply: a point cloud has no surface"):
+        check_simulable(cloud)
