@@ -48,21 +48,22 @@ STOPS = ("contact", "limit", "step_cap", "none")
 
 @dataclass(frozen=True)
 class TrialSettings:
-    """How a trial is run (``simulate`` params; see the module docstring for each step)."""
+    """How a trial is run: the ``simulate`` params of the same names, whose defaults and
+    documentation live in :class:`pipeline.params.SimulateParams` (one place)."""
 
-    mu: float = 0.5
-    cone_edges: int = 8
-    torsional_friction_m: float = 0.0
-    contact_tolerance_m: float = 0.002
-    retract_step_m: float = 0.005
-    retract_max_m: float = 0.2
-    approach_step_m: float = 0.001
-    near_m: float = 0.004
-    max_close_steps: int = 200
-    link_point_spacing_m: float = 0.003
-    coplanar_deg: float = 5.0
-    max_link_contacts: int = 4
-    grid_cells: int = 40
+    mu: float
+    cone_edges: int
+    torsional_friction_m: float
+    contact_tolerance_m: float
+    retract_step_m: float
+    retract_max_m: float
+    approach_step_m: float
+    near_m: float
+    max_close_steps: int
+    link_point_spacing_m: float
+    coplanar_deg: float
+    max_link_contacts: int
+    grid_cells: int
 
 
 @dataclass(frozen=True)
@@ -122,11 +123,13 @@ class GraspEngine:
         The object: its mesh (``vertices``, ``faces``) must be closed.
     hand : Hand
     **settings
-        :class:`TrialSettings` fields.
+        :class:`TrialSettings` fields; the ``simulate`` params' defaults for those left out.
     """
 
     def __init__(self, surface, hand, **settings):
-        self.settings = TrialSettings(**settings)
+        from .params import SimulateParams
+
+        self.settings = TrialSettings(**{**SimulateParams().world_settings(), **settings})
         self.hand = hand
         self.model = hand_model(hand, spacing=self.settings.link_point_spacing_m)
         self.mesh = ObjectMesh(surface.vertices, surface.faces, grid_cells=self.settings.grid_cells)
