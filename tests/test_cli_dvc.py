@@ -66,7 +66,7 @@ def test_plan_on_bad_mesh_is_one_line(tmp_path):
     unknown = run([sys.executable, "-m", "pipeline", "plan", "primitive:box", "--hand", "shadow", "--out", "out"],
                   tmp_path)
     assert unknown.returncode == 2 and unknown.stderr == \
-        "error: unknown hand 'shadow' (built-in: armar3, barrett, parallel_jaw; or a spec .yaml/.toml)\n"
+        "error: unknown hand 'shadow' (built-in: armar3, barrett, parallel_jaw, franka; or a spec .yaml/.toml)\n"
     assert not (tmp_path / "out").exists()
 
 
