@@ -3,10 +3,10 @@
 1. Every hand link, the palm included, whose distance to the object
    (:func:`pipeline.proximity.measure`) is within the contact tolerance touches it, and every
    touching pair of that measure is a contact candidate: a link surface point's closest mesh
-   point with the touched triangle's outward normal, or a mesh vertex near the link with the
-   link face's normal reversed (off a link edge or corner, where the link has no face normal,
-   the vertex's own area-weighted normal). So a link the closing rule stopped always has
-   contacts.
+   point with the touched triangle's outward normal, or a mesh feature point (a vertex, a
+   point on a non-flat edge) near the link with the link face's normal reversed (off a link
+   edge or corner, the link face there that best faces the object's own normal). So
+   a link the closing rule stopped always has contacts.
 2. Per link, candidates whose normals agree within ``coplanar_deg`` form one contact region
    (connected by agreement, so a smoothly curved patch is one region). As GraspIt! does, a
    region is replaced by the corners of its 2D convex hull in the plane across its mean normal:

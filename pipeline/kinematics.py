@@ -14,7 +14,7 @@ a :class:`HandModel`:
   inequality), so a closing step can be made that no point of any link outruns;
 - collision geometry, in link frames: surface points (``points``, every corner and edge of a
   shape at ``spacing`` or finer, its faces at ``spacing``) for the link-to-mesh distance, and each
-  shape's convex hull as planes for the mesh-to-link distance and the inside test (a concave
+  shape's convex hull as planes and edges for the mesh-to-link distance and the inside test (a concave
   mesh shape counts as its hull there, as Bullet and MuJoCo treat a moving mesh); each shape's
   bounding box for drawing.
 """
@@ -56,6 +56,8 @@ class HandModel:
     link_radius: np.ndarray  # (L,) 0 for a link without geometry
     planes: np.ndarray    # (K, F, 4) unit outward normal and offset, n . x + d <= 0 inside; padded rows never bind
     piece_link: np.ndarray  # (K,)
+    piece_edges: np.ndarray  # (K, E, 2, 3) link frame, NaN-padded: edges between non-coplanar faces
+    edge_planes: np.ndarray  # (K, E, 2) the rows of ``planes`` of the two faces at each edge
     piece_centre: np.ndarray  # (K, 3)
     piece_radius: np.ndarray  # (K,)
     cover_centre: np.ndarray  # (C, 3) link frame: spheres covering the pieces, sorted by link
@@ -205,6 +207,23 @@ def _planes(hull_points):
     return equations
 
 
+def _hull_edges(hull_points, planes):
+    """(e, 2, 3) the convex hull's edges between faces that are not coplanar, and (e, 2) the
+    rows of ``planes`` (from :func:`_planes`) of the two faces at each."""
+    hull = ConvexHull(hull_points)
+    owner = {}
+    for facet, simplex in enumerate(hull.simplices):
+        for corner in range(3):
+            edge = tuple(sorted((simplex[corner], simplex[(corner + 1) % 3])))
+            owner.setdefault(edge, []).append(facet)
+    edges = [(edge, facets) for edge, facets in owner.items()
+             if len(facets) == 2 and not np.allclose(hull.equations[facets[0]], hull.equations[facets[1]], atol=1e-9)]
+    ends = np.array([edge for edge, _ in edges], dtype=np.int64).reshape(-1, 2)
+    sides = np.array([[np.abs(planes - np.round(hull.equations[facet], 9)).sum(axis=1).argmin() for facet in facets]
+                      for _, facets in edges], dtype=np.int64).reshape(-1, 2)
+    return hull.points[ends], sides
+
+
 @functools.lru_cache(maxsize=16)
 def _cached_model(key, hand, spacing):
     return _build(hand, spacing)
@@ -296,6 +315,13 @@ def _build(frozen, spacing):
     padded[..., 3] = -np.inf  # a padded plane never holds the maximum
     for number, equations in enumerate(planes):
         padded[number, :len(equations)] = equations
+    edges = [_hull_edges(hull, equations) for hull, equations in zip(pieces, planes)]
+    edge_width = max((len(e[0]) for e in edges), default=1)
+    piece_edges = np.full((len(edges), edge_width, 2, 3), np.nan)  # padded edges are never nearest
+    edge_planes = np.zeros((len(edges), edge_width, 2), np.int64)
+    for number, (segments, sides) in enumerate(edges):
+        piece_edges[number, :len(segments)] = segments
+        edge_planes[number, :len(sides)] = sides
     piece_centre = np.array([(h.min(axis=0) + h.max(axis=0)) / 2 for h in pieces]).reshape(-1, 3)
     piece_radius = np.array([np.linalg.norm(h - c, axis=1).max() for h, c in zip(pieces, piece_centre)])
     covers = [_cover(hull, equations) for hull, equations in zip(pieces, planes)]
@@ -320,7 +346,7 @@ def _build(frozen, spacing):
     return HandModel(
         hand.name, links, parent, origin, axis, prismatic, driver, multiplier, offset, actuated, lower, upper,
         closing, finger_of, moves, lever, points, point_link, link_centre, link_radius, padded,
-        np.array(piece_link, int), piece_centre, piece_radius,
+        np.array(piece_link, int), piece_edges, edge_planes, piece_centre, piece_radius,
         np.concatenate([c[0] for c in covers]).reshape(-1, 3) if covers else np.zeros((0, 3)),
         np.concatenate([c[1] for c in covers]) if covers else np.zeros(0), cover_piece,
         np.array([box[0] for box in boxes]).reshape(-1, 3), np.array([box[1] for box in boxes]).reshape(-1, 3, 3),

@@ -18,6 +18,26 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 
+def _edge_points(vertices, faces, face_normals, spacing):
+    """Points (m, 3) strictly inside the mesh's non-flat edges longer than ``spacing``, at most
+    ``spacing`` apart, with the mean of the two faces' normals (m, 3)."""
+    import trimesh
+
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    pairs, edges = mesh.face_adjacency, mesh.face_adjacency_edges
+    bent = mesh.face_adjacency_angles > 1e-6
+    start, end = vertices[edges[bent, 0]], vertices[edges[bent, 1]]
+    counts = np.ceil(np.linalg.norm(end - start, axis=1) / spacing).astype(int) - 1
+    owner = np.repeat(np.arange(len(start)), np.maximum(counts, 0))
+    if not len(owner):
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    rank = np.arange(len(owner)) - np.repeat(np.cumsum(np.maximum(counts, 0)) - np.maximum(counts, 0), np.maximum(counts, 0))
+    fraction = (rank + 1) / (counts[owner] + 1)
+    points = start[owner] + fraction[:, None] * (end - start)[owner]
+    normals = face_normals[pairs[bent][owner, 0]] + face_normals[pairs[bent][owner, 1]]
+    return points, normals / np.linalg.norm(normals, axis=1, keepdims=True)
+
+
 @dataclass(frozen=True)
 class Closest:
     """Exact closest-point answers for (n,) queries: ``points`` (n, 3) on the mesh, ``triangles``
@@ -38,9 +58,11 @@ class ObjectMesh:
     faces : (f, 3) int
     grid_cells : int
         Grid nodes along the longest side of the bounding box (plus a margin of two cells).
+    edge_spacing : float
+        Largest gap (m) between the mesh's feature points along an edge (see ``features``).
     """
 
-    def __init__(self, vertices, faces, *, grid_cells=40):
+    def __init__(self, vertices, faces, *, grid_cells=40, edge_spacing=0.003):
         import open3d
 
         self._o3d = open3d
@@ -52,13 +74,20 @@ class ObjectMesh:
         self.scene = open3d.t.geometry.RaycastingScene()
         self.scene.add_triangles(open3d.core.Tensor(self.vertices.astype(np.float32)),
                                  open3d.core.Tensor(self.faces.astype(np.uint32)))
-        self.vertex_tree = cKDTree(self.vertices)
-        # vertex normals (area weighted) orient contacts found from mesh vertices
+        # vertex normals (area weighted) orient contacts found at mesh vertices
         accumulated = np.zeros_like(self.vertices)
         for corner in range(3):
             np.add.at(accumulated, self.faces[:, corner], normals)
-        self.vertex_normals = accumulated / np.maximum(np.linalg.norm(accumulated, axis=1, keepdims=True), 1e-300)
+        vertex_normals = accumulated / np.maximum(np.linalg.norm(accumulated, axis=1, keepdims=True), 1e-300)
+        #: the mesh's own convex features, which a flat link face can be nearest: every vertex, and
+        #: points along every edge between faces that are not coplanar (an object edge under a
+        #: link face is nearest it somewhere along the edge); ``feature_normals`` orient them
+        along, along_normals = _edge_points(self.vertices, self.faces, self.face_normals, edge_spacing)
+        self.features = np.concatenate([self.vertices, along])
+        self.feature_normals = np.concatenate([vertex_normals, along_normals])
+        self.feature_tree = cKDTree(self.features)
         low, high = self.vertices.min(axis=0), self.vertices.max(axis=0)
+        self.box = np.array([low, high])
         self.voxel = float((high - low).max() / grid_cells)
         self.origin = low - 2 * self.voxel
         shape = np.ceil((high - low) / self.voxel).astype(int) + 5
@@ -115,6 +144,9 @@ class ObjectMesh:
         return node - slack, node + slack
 
     def clearance(self, points):
-        """(n,) lower bound (m) on the unsigned distance of (n, 3) points to the mesh."""
+        """(n,) lower bound (m) on the unsigned distance of (n, 3) points to the mesh: the grid's,
+        or beyond the grid the distance to the mesh's bounding box."""
+        points = np.asarray(points, np.float64).reshape(-1, 3)
         low, high = self.bounds(points)
-        return np.maximum(np.maximum(low, -high), 0.0)
+        outside = np.linalg.norm(np.maximum(np.maximum(self.box[0] - points, points - self.box[1]), 0.0), axis=1)
+        return np.maximum(np.maximum(np.maximum(low, -high), 0.0), outside)

@@ -5,8 +5,10 @@ The distance of a link to the object is the smaller of two exact one-sided dista
 
 - link to mesh: the exact distance (:class:`pipeline.mesh_query.ObjectMesh`) from each of the
   link's surface points (every corner and edge, faces at the model's spacing) to the mesh;
-- mesh to link: from each mesh vertex near the link to the link's convex pieces, as the largest
-  signed plane distance (exact off a face, a lower bound off an edge or corner).
+- mesh to link: from each mesh feature point near the link (every vertex, and points along
+  every non-flat edge: :attr:`ObjectMesh.features`) to the link's convex pieces (the plane
+  distance off a face, the nearest hull edge's off an edge or corner: exact); spheres covering
+  each piece bound it where no vertex is near.
 
 Between them they see a link corner on an object face and an object corner on a link face. The
 signed distance grid only skips points that are certainly farther than ``near`` (or certainly
@@ -84,13 +86,15 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
             touches[0].append(pair[exact][hit])
             touches[1].append(found.points[hit])
             touches[2].append(found.normals[hit])
-        pair, vertex, signed, normal = _vertex_side(mesh, model, flat, slot, close, near)
+        bounds = []
+        pair, vertex, signed, normal = _vertex_side(mesh, model, flat, slot, close, near, bounds)
+        np.minimum.at(distance, *bounds[0])
         gap = np.maximum(signed, 0.0)
         np.minimum.at(distance, pair, gap)
         if tolerance is not None:
             hit = gap <= tolerance
             touches[0].append(pair[hit])
-            touches[1].append(mesh.vertices[vertex[hit]])
+            touches[1].append(mesh.features[vertex[hit]])
             touches[2].append(-normal[hit])
     if tolerance is None:
         return distance
@@ -99,11 +103,13 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
     return distance, Touches(joined[0].astype(np.int64), *joined[1:])
 
 
-def _vertex_side(mesh, model, flat, slot, close, near):
+def _vertex_side(mesh, model, flat, slot, close, near, bounds=None):
     """Mesh vertices within ``near`` of the convex pieces of the pairs ``close``: their pair (k,),
     vertex (k,), largest signed plane distance (k,) m (negative inside the piece) and the contact
-    normal (k, 3) pointing out of the link: the link face's, or minus the vertex's own normal
-    where the vertex lies off a link edge or corner."""
+    normal (k, 3) pointing out of the link: the link face's; off a link edge or corner, that of
+    the two faces at the nearest edge which best faces the object's own normal there. ``bounds``, a list, receives (pairs, m) of
+    the cover spheres too far for any vertex to be within ``near``: their lower bounds, which
+    keep the link's distance a bound when its nearest part is a face away from its edges."""
     count = len(model.links)
     cover_link = model.piece_link[model.cover_piece]
     starts = _starts(cover_link, count)
@@ -113,11 +119,17 @@ def _vertex_side(mesh, model, flat, slot, close, near):
     pair = close[owner]
     centres = transform(flat, slot[pair], model.cover_centre[cover])
     reach = model.cover_radius[cover] + near
-    needed = mesh.clearance(centres) <= reach  # a cover sphere farther than its reach holds no vertex
+    clearance = mesh.clearance(centres)
+    needed = clearance <= reach  # a cover sphere farther than its reach holds no vertex
+    if bounds is not None:
+        # a far cover is at least its clearance less its radius away; past a near one's reach,
+        # every feature is farther than ``near`` from it (just above near: never a touch)
+        bounds.append((pair, np.where(needed, np.nextafter(near, np.inf),
+                                      clearance - model.cover_radius[cover])))
     if not needed.any():
         return empty
     pair, cover = pair[needed], cover[needed]
-    found = mesh.vertex_tree.query_ball_point(centres[needed], reach[needed], return_sorted=False)
+    found = mesh.feature_tree.query_ball_point(centres[needed], reach[needed], return_sorted=False)
     sizes = np.fromiter((len(item) for item in found), np.int64, len(found))
     if not sizes.sum():
         return empty
@@ -125,16 +137,41 @@ def _vertex_side(mesh, model, flat, slot, close, near):
     which = np.repeat(np.arange(len(cover)), sizes)
     piece = model.cover_piece[cover]
     chosen = flat[slot[pair[which]]]
-    local = np.einsum("mji,mj->mi", chosen[:, :3, :3], mesh.vertices[vertex] - chosen[:, :3, 3])
+    local = np.einsum("mji,mj->mi", chosen[:, :3, :3], mesh.features[vertex] - chosen[:, :3, 3])
     planes = model.planes[piece[which]]
     signed = np.einsum("mfk,mk->mf", planes[..., :3], local) + planes[..., 3]
     face = signed.argmax(axis=1)
+    gap = signed[np.arange(len(face)), face]
     outward = np.einsum("mij,mj->mi", chosen[:, :3, :3], planes[np.arange(len(face)), face, :3])
-    # off a link face (one plane positive) the contact normal is that face's; off a link edge or
-    # corner the link has no normal there, and the object's own (vertex) normal is the contact's
+    # off a link face (one plane positive) the face's plane distance is the distance and its
+    # normal the contact's; off an edge or corner the nearest hull edge gives the distance, and
+    # the object's own (vertex) normal is the contact's, the link having none there
     on_face = (signed > 0).sum(axis=1) <= 1
-    normal = np.where(on_face[:, None], outward, -mesh.vertex_normals[vertex])
-    return pair[which], vertex, signed[np.arange(len(face)), face], normal
+    normal = outward.copy()
+    corner = np.flatnonzero(~on_face)
+    if len(corner):
+        owner_piece = piece[which][corner]
+        gap[corner], edge = _segment_distance(local[corner], model.piece_edges[owner_piece])
+        # of the two link faces at the nearest edge, the one facing the object's own normal there
+        sides = model.planes[owner_piece[:, None], model.edge_planes[owner_piece, edge], :3]  # (c, 2, 3)
+        sides = np.einsum("mij,mkj->mki", chosen[corner, :3, :3], sides)
+        facing = np.einsum("mki,mi->mk", sides, -mesh.feature_normals[vertex[corner]]).argmax(axis=1)
+        normal[corner] = sides[np.arange(len(corner)), facing]
+    return pair[which], vertex, gap, normal
+
+
+def _segment_distance(points, segments):
+    """Distance (m,) of (m, 3) points to the nearest of their (m, E, 2, 3) segments (NaN-padded),
+    and which segment (m,) that is."""
+    start, span = segments[:, :, 0], segments[:, :, 1] - segments[:, :, 0]
+    offset = points[:, None] - start
+    with np.errstate(invalid="ignore", divide="ignore"):
+        along = np.clip(np.einsum("mek,mek->me", offset, span) / np.einsum("mek,mek->me", span, span), 0.0, 1.0)
+    foot = start + along[..., None] * span
+    distance = np.linalg.norm(points[:, None] - foot, axis=2)
+    best = np.where(np.isnan(distance), np.inf, distance).argmin(axis=1)
+    rows = np.arange(len(points))
+    return distance[rows, best], best
 
 
 def collides(mesh, model, poses, *, overlap=1e-6):

@@ -132,7 +132,8 @@ class GraspEngine:
         self.settings = TrialSettings(**{**SimulateParams().world_settings(), **settings})
         self.hand = hand
         self.model = hand_model(hand, spacing=self.settings.link_point_spacing_m)
-        self.mesh = ObjectMesh(surface.vertices, surface.faces, grid_cells=self.settings.grid_cells)
+        self.mesh = ObjectMesh(surface.vertices, surface.faces, grid_cells=self.settings.grid_cells,
+                               edge_spacing=self.settings.link_point_spacing_m)
         self.centre = mass_properties(self.mesh.vertices, self.mesh.faces)
         self.torque_scale = float(np.linalg.norm(self.mesh.vertices - self.centre, axis=1).max())
         self.near = max(self.settings.near_m, self.settings.contact_tolerance_m)
