@@ -198,17 +198,23 @@ def _franka():
     """The Franka Emika Panda hand, read in place from pybullet_data's ``franka_panda/panda.urdf``
     (the subtree from ``panda_hand``, its collision meshes ``meshes/collision/*.obj``). Its two
     prismatic fingers open toward their upper limit (0.04 m each, the 80 mm stroke), so they close
-    with ratio -1; the second finger is the URDF's ``<mimic>`` of the first. The grasp centre is
-    the URDF's own ``panda_grasptarget`` (105 mm along +z, the approach axis)."""
+    with ratio -1. In the URDF the second finger is a ``<mimic>`` of the first: on an object that
+    cannot move, that coupling would stop both fingers at the first touch, where the real gripper
+    (or the object) shifts until both touch. As for ``parallel_jaw``, each finger is therefore a
+    closing group of its own, the kinematic trial's stand-in for that centring (a spec that lists
+    a mimic joint as a finger releases it). The grasp centre is the URDF's own
+    ``panda_grasptarget`` (105 mm along +z, the approach axis)."""
     import pybullet_data
 
     from .urdf import read_urdf
 
     urdf = str(Path(pybullet_data.getDataPath()) / "franka_panda" / "panda.urdf")
-    joint = read_urdf(urdf, base_link="panda_hand").joint("panda_finger_joint1")
-    return Hand("franka", 0.08, {"parallel": {"panda_finger_joint1": joint.limits[1]}},
-                grasp_centre=(0.0, 0.0, 0.105), fingers=(Finger(("panda_finger_joint1",), (-1.0,)),),
-                limits={"panda_finger_joint1": joint.limits}, urdf=urdf, base_link="panda_hand")
+    robot = read_urdf(urdf, base_link="panda_hand")
+    names = ("panda_finger_joint1", "panda_finger_joint2")
+    limits = {name: robot.joint(name).limits for name in names}
+    return Hand("franka", 0.08, {"parallel": {name: limits[name][1] for name in names}},
+                grasp_centre=(0.0, 0.0, 0.105), fingers=tuple(Finger((name,), (-1.0,)) for name in names),
+                limits=limits, urdf=urdf, base_link="panda_hand")
 
 
 HANDS = {hand.name: hand for hand in (_armar3(), _barrett(), _parallel_jaw(), _franka())}
@@ -311,11 +317,12 @@ def load_hand(path):
         raise BadParamsError(f"{path}: {err}") from None
     try:
         fingers = tuple(Finger(tuple(map(str, f["joints"])), tuple(map(float, f["ratios"]))) for f in raw["fingers"])
-        movable = {joint.name: joint for joint in robot.joints if joint.kind != "fixed" and joint.mimic is None}
+        # a mimic joint that the spec lists as a finger is released from its leader
+        movable = {joint.name: joint for joint in robot.joints if joint.kind != "fixed"}
         declared = [joint for finger in fingers for joint in finger.joints]
         unknown_joint = next((joint for joint in declared if joint not in movable), None)
         if unknown_joint is not None:
-            raise BadParamsError(f"{path}: finger joint {unknown_joint!r} is not a movable, non-mimic joint of "
+            raise BadParamsError(f"{path}: finger joint {unknown_joint!r} is not a movable joint of "
                                  f"{Path(urdf).name} below {robot.root!r}")
         # the spec's limits in its order (the trials' joint order), the URDF's for joints it leaves out
         limits = {str(joint): (float(lo), float(hi)) for joint, (lo, hi) in (raw.get("limits") or {}).items()}

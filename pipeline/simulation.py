@@ -16,8 +16,10 @@ candidate (P_g, P_d, P_o, preshape):
 4. close every finger at once, its joints moving by their coupling ratios (a negative ratio
    closes toward the lower limit; URDF mimic joints follow their leader), by conservative
    advancement: no point of a link moves farther than that link's distance to the object less
-   half the tolerance, so nothing tunnels. A link within the tolerance stops every joint that
-   moves it; joints beyond it close on (the Barrett breakaway). A finger stops on ``contact``, at
+   half the tolerance, so nothing tunnels. A link within the tolerance that closing presses
+   into the object (a touching point's velocity against the object's normal) stops every joint
+   that moves it; joints beyond it close on (the Barrett breakaway), and a link touching on its
+   back, which closing moves away, goes on. A finger stops on ``contact``, at
    its joint ``limit``, or at the ``max_close_steps`` cap (outcome ``step_cap``);
 5. contacts (:mod:`pipeline.contacts`) and the Ferrari-Canny epsilon (:mod:`pipeline.quality`),
    torque scaled by the object's largest distance from its centre of mass (GraspIt, Dex-Net).
@@ -253,9 +255,19 @@ class GraspEngine:
             steps[rows] += 1
             poses = link_poses(model, base[rows], q[rows])
             wanted = (active[rows].astype(float) @ model.moves) > 0
-            distance = self._distances(poses, wanted & (model.link_radius > 0))
-            touching = distance <= tolerance
-            stopped = active[rows] & ((touching.astype(float) @ model.moves.T) > 0)
+            pairs, links = np.nonzero(wanted & (model.link_radius > 0))
+            distance = np.full(wanted.shape, np.inf)
+            distance[pairs, links], touches = measure(self.mesh, model, poses, pairs, links, near=self.near,
+                                                      tolerance=tolerance)
+            # a link within the tolerance stops its joints where closing presses it into the
+            # object; one touching on its back, which closing moves away, goes on (OpenRAVE and
+            # GraspIt stop a joint on the collision its motion would make)
+            owner, link = pairs[touches.pair], links[touches.pair]
+            velocity = self._velocity(poses, owner, link, touches.points, active[rows][owner])
+            pressing = np.zeros(wanted.shape, bool)
+            into = np.einsum("ij,ij->i", velocity, touches.normals) < 0
+            pressing[owner[into], link[into]] = True
+            stopped = active[rows] & ((pressing.astype(float) @ model.moves.T) > 0)
             by_contact[rows] |= stopped
             active[rows] &= ~stopped
             moving = active[rows]
@@ -275,6 +287,26 @@ class GraspEngine:
         stops = np.where(per_finger(active), 2, np.where(per_finger(by_contact), 0, 1))
         stops = np.where(fingers.any(axis=0)[None, :], stops, 3)
         return q, stops, steps
+
+    def _velocity(self, poses, rows, links, points, active):
+        """(t, 3) velocity (m per unit of closing) of world ``points`` (t, 3) on ``links`` (t,) of
+        the poses ``rows`` (t,) under the joints ``active`` (t, J) closing."""
+        model = self.model
+        velocity = np.zeros_like(points)
+        walk = links.copy()
+        while (walk > 0).any():
+            live = np.flatnonzero(walk > 0)
+            link = walk[live]
+            joint = model.driver[link]
+            driven = joint >= 0
+            live, link, joint = live[driven], link[driven], joint[driven]
+            rate = model.closing[joint] * model.multiplier[link] * active[live, joint]
+            frame = poses[rows[live], link]
+            axis = np.einsum("nij,nj->ni", frame[:, :3, :3], model.axis[link])
+            spin = np.cross(axis, points[live] - frame[:, :3, 3])
+            velocity[live] += rate[:, None] * np.where(model.prismatic[link][:, None], axis, spin)
+            walk = np.where(walk > 0, model.parent[np.maximum(walk, 0)], walk)
+        return velocity
 
     def _score(self, poses, base, q, stops, steps, retract, approach):
         """The :class:`TrialResult` of one closed hand (link poses (L, 4, 4))."""
