@@ -155,12 +155,15 @@ def trial_bench_surface():
             len(mesh.faces)
 
 
-def run_trial_bench(*, trials=100, out=print):
+def run_trial_bench(*, trials=100, reference_trials=30, out=print):
     """Grasp trials per second per hand on a ~17k-triangle duck, the engine
     (:mod:`pipeline.simulation`, batched) beside the one it replaced (:mod:`pipeline.legacy_trial`,
     one trial at a time; box-link hands only) on the same random MAT candidates, one core; where
-    the new engine's time goes; its outcomes against the old one's (a confusion table); and every
-    core through the worker pool. Returns the rows."""
+    the new engine's time goes; its outcomes against the old one's and, on the first
+    ``reference_trials``, against :mod:`pipeline.reference_trial` (pybullet's exact queries, the
+    same protocol) as confusion tables; and every core through the worker pool. Returns the rows."""
+    from .reference_trial import ReferenceEngine
+
     surface, faces = trial_bench_surface()
     axis = medial_axis(surface, **vars(MedialAxisParams()))
     symmetry = classify(sphere_grid.build(reconstruct(surface, axis, **vars(MatParams()))), **vars(ClassifyParams()))
@@ -203,6 +206,17 @@ def run_trial_bench(*, trials=100, out=print):
                         for key, value in sorted(outcomes.items())))
         if old:
             out("    new | old: " + ", ".join(f"{a} | {b}: {n}" for (a, b), n in sorted(confusion.items())))
+        reference = ReferenceEngine(surface, hand, **settings)
+        start = time.perf_counter()
+        checked = reference.run(*(values[:reference_trials] for values in targets))
+        reference_rate = len(checked) / (time.perf_counter() - start)
+        reference.close()
+        against = Counter((result.outcome, other.outcome) for result, other in zip(new, checked))
+        agree = sum(n for (a, b), n in against.items() if a == b)
+        row.update(reference_per_s=round(reference_rate, 2), reference_agreement=round(agree / len(checked), 3),
+                   reference_confusion={f"{a} | {b}": n for (a, b), n in sorted(against.items())})
+        out(f"    new | reference (pybullet, {reference_rate:.1f} trials/s): agree {agree}/{len(checked)}; "
+            + ", ".join(f"{a} | {b}: {n}" for (a, b), n in sorted(against.items())))
     out("paper: 0.5 s per trial (one core, 2011); target >= 300 trials/s per core")
     return rows
 

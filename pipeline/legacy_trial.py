@@ -38,6 +38,7 @@ from scipy.spatial import cKDTree
 from .bullet import load_hand, pybullet
 from .errors import BadParamsError
 from .quality import epsilon_quality
+from .simulation import mass_properties
 
 OUTCOMES = ("force_closure", "no_force_closure", "no_contact", "collision", "error")
 _MAX_CLOSE_STEPS = 60
@@ -67,13 +68,6 @@ def hand_rotation(hand, approach, orient):
     orient /= np.linalg.norm(orient)
     world_axes = np.column_stack([approach, orient, np.cross(approach, orient)])
     return world_axes @ hand_axes.T
-
-
-def mass_properties(vertices, faces):
-    """Centre of mass (3,) of a closed mesh of uniform density, from signed tetrahedra."""
-    corners = vertices[faces]
-    volumes = np.einsum("ij,ij->i", corners[:, 0], np.cross(corners[:, 1], corners[:, 2]))
-    return (volumes[:, None] * corners.sum(axis=1)).sum(axis=0) / (4.0 * volumes.sum())
 
 
 class GraspWorld:
@@ -473,28 +467,3 @@ def _quaternion(rotation):
     from scipy.spatial.transform import Rotation
 
     return tuple(Rotation.from_matrix(rotation).as_quat())
-
-
-# A worker process's worlds, one per hand, built on first use (pipeline.trials runs the pool;
-# these live here so that a spawned worker imports only this module's dependencies).
-_WORKER = {}
-
-
-def start_worker(surface, hands, settings):
-    """Set up this process to run trials on ``surface`` with ``hands`` (GraspWorld ``settings``)."""
-    _WORKER.update(surface=surface, hands=hands, settings=settings, worlds={})
-
-
-def run_chunk(hand_number, targets):
-    """Trials of ``targets`` ((P_g, P_d, P_o, preshape) tuples) with hand ``hand_number``."""
-    worlds = _WORKER["worlds"]
-    if hand_number not in worlds:
-        worlds[hand_number] = GraspWorld(_WORKER["surface"], _WORKER["hands"][hand_number], **_WORKER["settings"])
-    return [worlds[hand_number].trial(*target) for target in targets]
-
-
-def stop_worker():
-    """Disconnect this process's worlds."""
-    for world in _WORKER.pop("worlds", {}).values():
-        world.close()
-    _WORKER.clear()

@@ -6,7 +6,9 @@ as its URDF (a mesh link as its convex hull); ``getClosestPoints`` gives exact d
 object points near each link, with the normal on the object. A link swallowed whole by the
 object, which pybullet cannot see (the mesh is only a surface), is caught by the winding number
 of the link's box centres (:func:`winding_number`). Placement, the closing rule and the contact merging and quality
-definitions are the engine's (they are what the two share by design); the geometry is not. One
+definitions are the engine's (they are what the two share by design); the geometry is not,
+nor the kinematics of whether closing presses a touching link into the object (pybullet's link
+states, differentiated numerically). One
 trial costs tens of pybullet queries per step: use it on small samples (bench, tests).
 """
 
@@ -82,6 +84,27 @@ class ReferenceEngine:
         hits = self._hits(link, reach)
         return min((hit[8] for hit in hits), default=reach)
 
+    def _link_frame(self, link):
+        if self.links[link] < 0:
+            state = self._call(pybullet.getBasePositionAndOrientation, self.body)
+        else:
+            state = self._call(pybullet.getLinkState, self.body, self.links[link], computeForwardKinematics=True)[4:6]
+        return np.asarray(state[0]), np.array(pybullet.getMatrixFromQuaternion(state[1])).reshape(3, 3)
+
+    def _pressed(self, base, q, active, link, step=1e-5):
+        """Whether closing the ``active`` joints presses link ``link``'s touching points into the
+        object: their motion over a tiny closing step (pybullet's kinematics, numerically) against
+        the object's normal there."""
+        hits = self._hits(link, self.settings.contact_tolerance_m)
+        points, normals = np.array([hit[6] for hit in hits]), np.array([hit[7] for hit in hits])
+        origin, rotation = self._link_frame(link)
+        local = (points - origin) @ rotation
+        self._pose(base, np.where(active, q + step * self.model.closing, q))
+        origin, rotation = self._link_frame(link)
+        self._pose(base, q)
+        moved = local @ rotation.T + origin - points
+        return bool((np.einsum("ij,ij->i", moved, normals) < 0).any())
+
     def _collides(self, base, q):
         geometric = [link for link in range(len(self.model.links)) if self.model.link_radius[link] > 0]
         if any(self._gap(link, 0.0) < -1e-6 for link in geometric):
@@ -137,8 +160,10 @@ class ReferenceEngine:
             wanted = (active.astype(float) @ model.moves) > 0
             distance = np.array([self._gap(link) if wanted[link] and model.link_radius[link] > 0 else np.inf
                                  for link in range(len(model.links))])
-            touching = distance <= tolerance
-            stopped = active & ((touching.astype(float) @ model.moves.T) > 0)
+            touching = np.flatnonzero(distance <= tolerance)
+            pressing = np.zeros(len(model.links), bool)
+            pressing[touching] = [self._pressed(base, q, active, link) for link in touching]
+            stopped = active & ((pressing.astype(float) @ model.moves.T) > 0)
             by_contact |= stopped
             active &= ~stopped
             for finger in range(model.fingers):
