@@ -339,18 +339,11 @@ class GraspEngine:
                            quality.volume, touched=tuple(model.links[link] for link in np.unique(owners)),
                            contact_points=points, contact_normals=normals, contact_links=owners, **pose)
 
-    def link_boxes(self, base_position, base_orientation, joints):
-        """Every collision shape's drawing box with the URDF base at ``base_position`` (m) and
-        ``base_orientation`` (quaternion x y z w) and ``joints`` (name -> value): world centres
-        (S, 3), rotations (S, 3, 3) and half extents (S, 3)."""
-        return hand_boxes(self.model, base_position, base_orientation, joints)
-
-    def close(self):
-        """Nothing to release (kept for callers that close worlds)."""
-
 
 def hand_boxes(model, base_position, base_orientation, joints):
-    """See :meth:`GraspEngine.link_boxes`."""
+    """Every collision shape's drawing box of the hand ``model`` with its URDF base at
+    ``base_position`` (m) and ``base_orientation`` (quaternion x y z w) and ``joints`` (name ->
+    value): world centres (S, 3), rotations (S, 3, 3) and half extents (S, 3)."""
     base = np.eye(4)
     base[:3, :3] = Rotation.from_quat(base_orientation).as_matrix()
     base[:3, 3] = base_position
