@@ -52,7 +52,14 @@ def render_hand(hand, joints, *, base=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), s
                  for index in range(pybullet.getNumJoints(body, physicsClientId=client))}
         rotation = np.array(pybullet.getMatrixFromQuaternion(base[1])).reshape(3, 3)
         # frame the open hand, in its own frame, so open and closed pictures match
-        pybullet.resetBasePositionAndOrientation(body, (0, 0, 0), (0, 0, 0, 1), physicsClientId=client)
+        # pybullet places a base by its inertial frame; ``base`` is the URDF base frame's pose
+        inertial = pybullet.getDynamicsInfo(body, -1, physicsClientId=client)[3:5]
+
+        def place(position, quaternion):
+            pybullet.resetBasePositionAndOrientation(body, *pybullet.multiplyTransforms(
+                tuple(position), tuple(quaternion), *inertial), physicsClientId=client)
+
+        place((0, 0, 0), (0, 0, 0, 1))
         for joint, value in _with_mimics(hand, hand.preshape()).items():
             pybullet.resetJointState(body, names[joint], value, physicsClientId=client)
         boxes = np.array([pybullet.getAABB(body, index, physicsClientId=client) for index in [-1, *names.values()]])
@@ -62,7 +69,7 @@ def render_hand(hand, joints, *, base=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), s
         target = (low + high) / 2
         eye = target + 1.7 * np.linalg.norm(high - low) * (0.55 * np.asarray(hand.wrap) + 0.75 * side + 0.35 * up)
         target, eye, up = (rotation @ target + base[0], rotation @ eye + base[0], rotation @ up)
-        pybullet.resetBasePositionAndOrientation(body, base[0], base[1], physicsClientId=client)
+        place(base[0], base[1])
         for joint, value in _with_mimics(hand, joints).items():
             pybullet.resetJointState(body, names[joint], value, physicsClientId=client)
         if frame == "scene":  # fingers in profile, object frame z up, framed on the hand and the mesh near it
