@@ -1,15 +1,17 @@
 """Robot hands: kinematics, limits and preshapes, declared in one place per hand.
 
-A hand is a URDF (links with simple collision shapes, revolute or prismatic joints) plus the
-declarations the planner needs, in the hand's base frame (metres, radians):
+A hand is a URDF (links with box, sphere, cylinder, capsule or mesh collision shapes, several
+per link; revolute and prismatic joints; ``<mimic>`` joints; read by :mod:`pipeline.urdf`) plus
+the declarations the planner needs, in the hand's base frame (metres, radians):
 
 - ``approach``: unit axis the palm faces; the hand moves along it toward the object (P_d).
 - ``wrap``: unit axis the fingers wrap about (P_o), orthogonal to ``approach``.
 - ``grasp_centre``: the point placed at the grasp target P_g.
 - ``fingers``: closing groups; each lists its joints from the palm outward with coupling ratios
-  (joint velocity = ratio x the finger's closing speed). pybullet ignores URDF ``<mimic>``, so
-  :mod:`pipeline.simulation` enforces the ratios itself.
-- ``limits``: joint name -> (lower, upper).
+  (joint velocity = ratio x the finger's closing speed; a negative ratio closes toward the
+  lower limit). A URDF ``<mimic>`` joint follows its leader unless a finger lists it.
+- ``limits``: joint name -> (lower, upper); in a spec, optional (the URDF's by default).
+- ``base_link``: the hand's root link when its URDF is a larger robot (default: the URDF's root).
 - ``preshapes``: name -> {joint: value} of the open hand; unnamed joints sit at their lower
   limit. The first preshape is the default; every hand has ``parallel``.
 - ``max_graspable_diameter``: the largest sphere the hand can hold (paper IV).
@@ -30,6 +32,7 @@ Built-in hands are generated from published kinematics (``facts.md`` 4) in the c
   and the tip wraps on (with 1:1 the tips met a 5 cm cylinder beyond its axis, pushing it out of
   the hand, and 20 of 36 grasps failed).
 - ``parallel_jaw``: Franka-like. Two 20 x 8 x 50 mm pads on prismatic joints, 0-80 mm stroke.
+- ``franka``: the Panda hand itself, read in place from pybullet_data (see :func:`_franka`).
 
 A user's hand is a URDF plus a YAML (or TOML) spec with the same keys (see :func:`export_hand`,
 which writes a built-in hand in that form); ``--hand path/to/spec.yaml`` works wherever a built-in
