@@ -16,10 +16,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .bullet import load_hand, pybullet
-from .contacts import region_corners
 from .kinematics import base_poses, hand_model, link_poses
-from .quality import epsilon_quality
-from .simulation import TrialResult, mass_properties
+from .simulation import TrialResult, grade, mass_properties
 
 
 def winding_number(vertices, faces, points):
@@ -186,23 +184,9 @@ class ReferenceEngine:
                     joint_positions=tuple(map(float, q)), close_steps=steps, finger_stops=stops)
         if "step_cap" in stops:
             return TrialResult("step_cap", **pose)
-        points, normals, owners = [], [], []
+        regions = []
         for link in geometric:
             hits = self._hits(link, tolerance)
-            if not hits:
-                continue
-            found, outward = np.array([hit[6] for hit in hits]), np.array([hit[7] for hit in hits])
-            keep = region_corners(found, outward, coplanar_deg=settings.coplanar_deg,
-                                  max_corners=settings.max_link_contacts)
-            points.append(found[keep])
-            normals.append(outward[keep])
-            owners.append(np.full(len(keep), link))
-        if not points:
-            return TrialResult("no_contact", **pose)
-        points, normals, owners = np.concatenate(points), np.concatenate(normals), np.concatenate(owners)
-        quality = epsilon_quality(points, -normals, mu=settings.mu, edges=settings.cone_edges,
-                                  torque_scale=self.torque_scale, torsional_friction=settings.torsional_friction_m,
-                                  center=self.centre)
-        return TrialResult("force_closure" if quality.force_closure else "no_force_closure", quality.epsilon,
-                           quality.volume, touched=tuple(model.links[link] for link in np.unique(owners)),
-                           contact_points=points, contact_normals=normals, contact_links=owners, **pose)
+            if hits:
+                regions.append((link, np.array([hit[6] for hit in hits]), np.array([hit[7] for hit in hits])))
+        return grade(regions, model, settings, centre=self.centre, torque_scale=self.torque_scale, **pose)

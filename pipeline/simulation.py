@@ -321,23 +321,42 @@ class GraspEngine:
         touched = links[distance <= settings.contact_tolerance_m]
         if (stops == 2).any():
             return TrialResult("step_cap", touched=tuple(model.links[link] for link in touched), **pose)
-        if not len(touches.pair):
-            return TrialResult("no_contact", **pose)
-        points, normals, owners = [], [], []
-        for pair in np.unique(touches.pair):
-            mine = np.flatnonzero(touches.pair == pair)
-            keep = mine[region_corners(touches.points[mine], touches.normals[mine], coplanar_deg=settings.coplanar_deg,
-                                       max_corners=settings.max_link_contacts)]
-            points.append(touches.points[keep])
-            normals.append(touches.normals[keep])
-            owners.append(np.full(len(keep), links[pair]))
-        points, normals, owners = np.concatenate(points), np.concatenate(normals), np.concatenate(owners)
-        quality = epsilon_quality(points, -normals, mu=settings.mu, edges=settings.cone_edges,
-                                  torque_scale=self.torque_scale, torsional_friction=settings.torsional_friction_m,
-                                  center=self.centre)
-        return TrialResult("force_closure" if quality.force_closure else "no_force_closure", quality.epsilon,
-                           quality.volume, touched=tuple(model.links[link] for link in np.unique(owners)),
-                           contact_points=points, contact_normals=normals, contact_links=owners, **pose)
+        regions = [(links[pair], touches.points[touches.pair == pair], touches.normals[touches.pair == pair])
+                   for pair in np.unique(touches.pair)]
+        return grade(regions, model, settings, centre=self.centre, torque_scale=self.torque_scale, **pose)
+
+
+def grade(regions, model, settings, *, centre, torque_scale, **pose):
+    """The :class:`TrialResult` of a closed hand from its touching pairs.
+
+    Parameters
+    ----------
+    regions : list of (int, (k, 3) float, (k, 3) float)
+        Per touching link: its index in ``model``, the object points (m) and the object's
+        outward unit normals of its touching pairs; merged here (:func:`region_corners`).
+    model : HandModel
+    settings : TrialSettings
+    centre : (3,) float
+        The object's centre of mass (m), the torque reference.
+    torque_scale : float
+        Length (m) dividing torques.
+    **pose
+        The other :class:`TrialResult` fields (where the hand closed, joints, stops).
+    """
+    if not regions:
+        return TrialResult("no_contact", **pose)
+    points, normals, owners = [], [], []
+    for link, found, outward in regions:
+        keep = region_corners(found, outward, coplanar_deg=settings.coplanar_deg, max_corners=settings.max_link_contacts)
+        points.append(found[keep])
+        normals.append(outward[keep])
+        owners.append(np.full(len(keep), link))
+    points, normals, owners = np.concatenate(points), np.concatenate(normals), np.concatenate(owners)
+    quality = epsilon_quality(points, -normals, mu=settings.mu, edges=settings.cone_edges, torque_scale=torque_scale,
+                              torsional_friction=settings.torsional_friction_m, center=centre)
+    return TrialResult("force_closure" if quality.force_closure else "no_force_closure", quality.epsilon,
+                       quality.volume, touched=tuple(model.links[link] for link in np.unique(owners)),
+                       contact_points=points, contact_normals=normals, contact_links=owners, **pose)
 
 
 def hand_boxes(model, base_position, base_orientation, joints):
