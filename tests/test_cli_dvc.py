@@ -217,7 +217,7 @@ def test_hands_cli_exports_a_hand_that_plan_accepts_and_renders_pictures(tmp_pat
     rendered = run([sys.executable, "-m", "pipeline", "hands", "--render", "pictures"], tmp_path)
     assert rendered.returncode == 0, rendered.stderr
     assert {path.name for path in (tmp_path / "pictures").iterdir()} == {"armar3.png", "barrett.png",
-                                                                         "parallel_jaw.png"}
+                                                                         "parallel_jaw.png", "franka.png"}
     bad = run([sys.executable, "-m", "pipeline", "plan", "primitive:box", "--hand", "nohand.yaml", "--out", "x"],
               tmp_path)
     assert bad.returncode == 2 and bad.stderr == "error: nohand.yaml: hand spec not found\n"
