@@ -71,7 +71,7 @@ def test_plan_on_bad_mesh_is_one_line(tmp_path):
 
 
 def tiny_project(tmp_path):
-    """A copy of the project with the tiny config: 2 objects x 2 scales x 2 hands, 20 spheres."""
+    """A copy of the project with the tiny config: 2 objects x 2 scales x 2 hands, 5 spheres."""
     for name in ("pipeline", "stages", "dag", "dvc.yaml"):
         source = REPO / name
         if source.is_dir():
@@ -82,7 +82,7 @@ def tiny_project(tmp_path):
     params["objects"] = {"box": {"source": "primitive:box"}, "capsule": {"source": "primitive:capsule"}}
     params["scales"] = [1.0, 0.5]
     params["sample"]["count"] = 2000
-    params["simulate"].update(spheres_per_object=20, workers=1)
+    params["simulate"].update(spheres_per_object=5, workers=1)
     params["report"].update(figure_objects=["capsule"], example_grasps=1)
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
     (tmp_path / ".gitignore").write_text("__pycache__/\n")
