@@ -7,6 +7,12 @@ torque_scale)``; the grasp's epsilon is the distance from the ORIGIN of wrench s
 hull's centroid) to the nearest facet of the wrenches' convex hull, and 0 unless the origin is
 strictly inside (force closure).
 
+The nearest facet is found without building the whole hull, which in 6D has thousands of facets
+for a hundred wrenches: the hull of a few extreme wrenches is grown until its nearest facet has
+no wrench beyond it (:func:`_nearest_facet`). A hull inside the whole one is never farther from
+the origin than the whole one's facets, and a facet with no wrench beyond it supports the whole
+hull, so that facet's distance is the whole hull's epsilon, exactly (to Qhull's rounding).
+
 Torque is divided by ``torque_scale`` (metres) so that it is comparable with force; GraspIt and
 Dex-Net use the object's largest radius about its centre of mass, which the caller passes along
 with ``center`` (the centre of mass). Epsilon is then dimensionless and independent of the object's
@@ -31,6 +37,7 @@ from .checks import as_points
 
 RANK_TOL = 1e-9     # smallest singular value / largest below which the wrenches are flat
 INSIDE_TOL = 1e-12  # origin-to-facet distance below which the origin counts as on the hull
+BEYOND_TOL = 1e-10  # how far past a facet's plane a wrench must lie to count as beyond it
 DEDUPE_DECIMALS = 12  # identical wrenches (e.g. symmetric contacts) only slow Qhull down
 # Without pre-merging (Q0) Qhull is 2-3x faster in 6D and the facet offsets are the same; when
 # it reports a precision error, co-planar cone edges of symmetric grasps (box pads, rings of
@@ -48,7 +55,8 @@ class Quality:
     epsilon : float
         Distance from the origin to the nearest facet of the wrench hull; 0 unless force closure.
     volume : float
-        6D volume of the wrench hull; 0 when the wrenches span fewer than 6 dimensions.
+        6D volume of the wrench hull (GraspIt's volume quality); 0 when the wrenches span fewer
+        than 6 dimensions, NaN unless asked for (it needs the whole hull).
     force_closure : bool
         Whether the origin is strictly inside the hull (``epsilon > 0``).
     """
@@ -142,9 +150,47 @@ def contact_wrenches(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, tors
     return np.concatenate([forces, torques / torque_scale], axis=2)
 
 
+def _hull(wrenches):
+    """Qhull's hull of (n, 6) wrenches, or None when every option fails."""
+    for options in QHULL_OPTIONS:
+        try:
+            return ConvexHull(wrenches, qhull_options=options)
+        except QhullError:
+            continue
+    return None
+
+
+def _nearest_facet(wrenches):
+    """Signed distance from the origin to the nearest facet of the hull of (n, 6) full-rank
+    ``wrenches`` (negative when the origin is outside), or None when Qhull fails."""
+    axes = np.concatenate([np.eye(6), -np.eye(6)])
+    # the extremes along the axes: growing from fewer, larger hulls was slower (measured)
+    chosen = np.unique((wrenches @ axes.T).argmax(axis=0))
+    while True:
+        if len(chosen) < 7:
+            chosen = np.union1d(chosen, np.setdiff1d(np.arange(len(wrenches)), chosen)[:7 - len(chosen)])
+        hull = _hull(wrenches[chosen])
+        if hull is None:
+            return None
+        # equations rows are [unit normal, offset] with normal . x + offset <= 0 inside
+        distance = -hull.equations[:, -1]
+        along = wrenches @ hull.equations[:, :-1].T
+        support = along.max(axis=0)
+        # the small hull's epsilon bounds the whole one's from below, the whole one's support
+        # along any unit direction from above (and a support <= 0 puts the origin outside)
+        lower, upper = distance.min(), support.min()
+        if upper <= INSIDE_TOL or upper - lower <= BEYOND_TOL:
+            return float(min(lower, upper))
+        # facets nearer than the upper bound get their farthest wrench (the nearest is among
+        # them: its support is at least the upper bound, so a wrench lies beyond it)
+        wanted = (support - distance > BEYOND_TOL) & (distance < upper)
+        chosen = np.union1d(chosen, along[:, wanted].argmax(axis=0))
+
+
 def epsilon_quality(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, torsional_friction=0.0,
-                    center=None):
+                    center=None, volume=False):
     """Ferrari-Canny epsilon (L1) of a grasp; see :func:`contact_wrenches` for the parameters.
+    ``volume``: also the hull's volume (builds the whole hull: many times slower).
 
     Returns
     -------
@@ -166,15 +212,14 @@ def epsilon_quality(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, torsi
     spread = np.linalg.svd(wrenches - wrenches.mean(axis=0), compute_uv=False)
     if len(wrenches) < 7 or spread[5] <= RANK_TOL * spread[0]:
         return none
-    for options in QHULL_OPTIONS:
-        try:
-            hull = ConvexHull(wrenches, qhull_options=options)
-            break
-        except QhullError:
-            continue
-    else:
+    whole = _hull(wrenches) if volume else None
+    if volume and whole is None:
         return none
-    # equations rows are [unit normal, offset] with normal . x + offset <= 0 inside
-    distance = -hull.equations[:, -1].max()  # to the nearest facet's plane
+    distance = _nearest_facet(wrenches)
+    if distance is None:  # a small hull failed: the whole one decides
+        whole = whole or _hull(wrenches)
+        if whole is None:
+            return none
+        distance = -whole.equations[:, -1].max()
     inside = distance > INSIDE_TOL
-    return Quality(float(distance) if inside else 0.0, float(hull.volume), bool(inside))
+    return Quality(float(distance) if inside else 0.0, float(whole.volume) if volume else float("nan"), bool(inside))

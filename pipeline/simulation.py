@@ -80,7 +80,6 @@ class TrialResult:
 
     outcome: str
     epsilon: float = 0.0
-    volume: float = 0.0
     retract_m: float = float("nan")
     approach_m: float = float("nan")
     base_position: tuple = (float("nan"),) * 3
@@ -355,7 +354,7 @@ def grade(regions, model, settings, *, centre, torque_scale, **pose):
     quality = epsilon_quality(points, -normals, mu=settings.mu, edges=settings.cone_edges, torque_scale=torque_scale,
                               torsional_friction=settings.torsional_friction_m, center=centre)
     return TrialResult("force_closure" if quality.force_closure else "no_force_closure", quality.epsilon,
-                       quality.volume, touched=tuple(model.links[link] for link in np.unique(owners)),
+                       touched=tuple(model.links[link] for link in np.unique(owners)),
                        contact_points=points, contact_normals=normals, contact_links=owners, **pose)
 
 

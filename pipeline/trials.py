@@ -14,7 +14,7 @@ trials (``trials.parquet``): one row per trial; ``planner`` (mat | baseline), ``
 ``candidate_id`` (the candidates table's id; the draw number for the baseline), ``sphere_index``
 and ``sphere_class`` (-1 and "surface" for the baseline), ``preshape``, ``grasp_*``,
 ``approach_*``, ``orient_*`` (the target), ``outcome`` (one of :data:`OUTCOMES`), ``epsilon``,
-``volume``, ``contacts``, ``retract_m`` (how far back from P_g the hand closed),
+``contacts``, ``retract_m`` (how far back from P_g the hand closed),
 ``approach_m`` (how far it came back to contact after retreating clear), ``base_*`` (position,
 m) and ``base_q*`` (quaternion x, y, z, w) of the hand's URDF base frame as it closed,
 ``joints`` (closed joint values in the hand's ``limits`` order), ``close_steps``, ``touched``
@@ -172,7 +172,6 @@ def _tables(blocks):
         frame.insert(0, "planner", planner)
         frame["outcome"] = [result.outcome for result in results]
         frame["epsilon"] = [result.epsilon for result in results]
-        frame["volume"] = [result.volume for result in results]
         frame["contacts"] = [len(result.contact_points) for result in results]
         frame["retract_m"] = [result.retract_m for result in results]
         frame["approach_m"] = [result.approach_m for result in results]

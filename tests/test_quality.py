@@ -9,6 +9,7 @@ import itertools
 
 import numpy as np
 import pytest
+from scipy.spatial import ConvexHull
 
 from pipeline.errors import BadInputError
 from pipeline.quality import Quality, contact_wrenches, epsilon_quality, friction_cone
@@ -139,7 +140,7 @@ def test_antipodal_point_contacts_are_not_force_closure():
 ])
 def test_antipodal_soft_fingers_match_closed_form(length, gamma, mu):
     points, normals = antipodal()
-    quality = epsilon_quality(points, normals, mu=mu, torque_scale=length, torsional_friction=gamma)
+    quality = epsilon_quality(points, normals, mu=mu, torque_scale=length, torsional_friction=gamma, volume=True)
     assert quality.force_closure and quality.volume > 0
     assert quality.epsilon == pytest.approx(soft_antipodal_epsilon(A, length, gamma, mu), abs=1e-9)
 
@@ -170,7 +171,7 @@ def test_line_outside_the_cones_is_not_force_closure(gamma):
     p1 - p2 = (2a, 0, -h); with h / 2a = 0.75 > mu = 0.5 no such f lies in the cones, however
     large gamma is. The hull is full-dimensional, the origin just outside it."""
     points, normals = antipodal(height=1.5 * A)
-    quality = epsilon_quality(points, normals, mu=0.5, torque_scale=A, torsional_friction=gamma)
+    quality = epsilon_quality(points, normals, mu=0.5, torque_scale=A, torsional_friction=gamma, volume=True)
     assert quality.epsilon == 0.0 and not quality.force_closure
     assert quality.volume > 0
     # inside the cones (h / 2a = 0.4 < mu) the same fingers do hold
@@ -189,7 +190,7 @@ def test_line_outside_the_cones_is_not_force_closure(gamma):
 ])
 def test_point_contact_grasps_known_epsilon(grasp, length, expected):
     points, normals = grasp()
-    quality = epsilon_quality(points, normals, mu=0.5, torque_scale=length)
+    quality = epsilon_quality(points, normals, mu=0.5, torque_scale=length, volume=True)
     assert quality.force_closure and quality.volume > 0
     assert quality.epsilon == pytest.approx(expected, abs=1e-9)
 
@@ -222,6 +223,35 @@ def test_epsilon_grows_with_mu():
     points, normals = four_faces()
     eps = [epsilon_quality(points, normals, mu=mu, torque_scale=A).epsilon for mu in (0.2, 0.5, 1.0)]
     assert 0 < eps[0] < eps[1] < eps[2]
+
+
+@pytest.mark.parametrize("spread", [np.pi, np.pi / 2])
+def test_grown_hull_gives_the_whole_hulls_epsilon(spread, rng):
+    """Many contacts (the engine's usual case): epsilon from the grown hull equals the nearest
+    facet of Qhull's hull of every wrench; contacts within ``spread`` of a pole (a hemisphere) are
+    often not force closure, which must agree too."""
+    verdicts = set()
+    for _ in range(20):
+        count = rng.integers(3, 25)
+        polar = np.arccos(1 - (1 - np.cos(spread)) * rng.random(count))
+        azimuth = 2 * np.pi * rng.random(count)
+        outward = np.c_[np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth), np.cos(polar)]
+        points, normals = 0.03 * outward, -outward
+        options = dict(mu=0.5, torque_scale=0.03, torsional_friction=0.0)
+        wrenches = contact_wrenches(points, normals, **options).reshape(-1, 6)
+        whole = -ConvexHull(wrenches).equations[:, -1].max()
+        quality = epsilon_quality(points, normals, **options)
+        assert quality.force_closure == (whole > 1e-12)
+        assert quality.epsilon == pytest.approx(max(whole, 0.0) if whole > 1e-12 else 0.0, abs=1e-12)
+        verdicts.add(quality.force_closure)
+    assert True in verdicts and (spread == np.pi or False in verdicts)
+
+
+def test_volume_only_when_asked():
+    points, normals = four_faces()
+    assert np.isnan(epsilon_quality(points, normals, torque_scale=A).volume)
+    whole = ConvexHull(contact_wrenches(points, normals, torque_scale=A).reshape(-1, 6))
+    assert epsilon_quality(points, normals, torque_scale=A, volume=True).volume == pytest.approx(whole.volume)
 
 
 # --- invariances ----------------------------------------------------------------------------
@@ -278,8 +308,8 @@ def test_deterministic_and_inputs_not_modified():
     normals = normals * 2.0
     center = np.array([0.0, 0.001, 0.0])
     saved = points.copy(), normals.copy(), center.copy()
-    first = epsilon_quality(points, normals, torque_scale=0.02, torsional_friction=0.002, center=center)
-    second = epsilon_quality(points, normals, torque_scale=0.02, torsional_friction=0.002, center=center)
+    first = epsilon_quality(points, normals, torque_scale=0.02, torsional_friction=0.002, center=center, volume=True)
+    second = epsilon_quality(points, normals, torque_scale=0.02, torsional_friction=0.002, center=center, volume=True)
     assert first == second
     contact_wrenches(points, normals, center=center)
     friction_cone(normals)
