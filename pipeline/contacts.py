@@ -22,7 +22,6 @@ objects' meshes).
 """
 
 import numpy as np
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, QhullError
 
 
@@ -47,13 +46,25 @@ def region_corners(points, normals, *, coplanar_deg=5.0, merge_m=1e-4, max_corne
     if len(points) <= 2:
         return np.arange(len(points))
     agree = normals @ normals.T >= np.cos(np.radians(coplanar_deg))
-    _, region = connected_components(agree, directed=False)
+    region = _components(agree)
     keep = []
     for label in np.unique(region):
         members = np.flatnonzero(region == label)
         corners = members[_hull_2d(points[members], normals[members].mean(axis=0), merge_m)]
         keep += list(corners)
     return np.sort(_farthest(points, np.array(keep, dtype=np.int64), max_corners))
+
+
+def _components(linked):
+    """(n,) label of each node's connected component in the symmetric (n, n) bool ``linked``
+    (its smallest member), by spreading the smallest label to neighbours until nothing changes;
+    the usual case, every normal agreeing, takes one step."""
+    label = np.arange(len(linked))
+    while True:
+        new = np.where(linked, label[None, :], len(linked)).min(axis=1)
+        if (new == label).all():
+            return label
+        label = new
 
 
 def _farthest(points, indices, count):
@@ -80,7 +91,7 @@ def _hull_2d(points, normal, merge_m):
     first /= np.linalg.norm(first)
     plane = np.column_stack([(points - points[0]) @ first, (points - points[0]) @ np.cross(normal, first)])
     centred = plane - plane.mean(axis=0)
-    spread = np.linalg.svd(centred, compute_uv=False)
+    _, spread, axes = np.linalg.svd(centred, full_matrices=False)
     if spread[0] <= merge_m:
         return np.array([0])
     if spread[1] > merge_m * np.sqrt(len(points)):
@@ -88,6 +99,5 @@ def _hull_2d(points, normal, merge_m):
             return np.sort(ConvexHull(plane).vertices)
         except QhullError:
             pass
-    direction = np.linalg.svd(centred, full_matrices=False)[2][0]
-    along = centred @ direction
+    along = centred @ axes[0]
     return np.unique([along.argmin(), along.argmax()])

@@ -35,6 +35,9 @@ class Touches:
     normals: np.ndarray
 
 
+TIE_M = 1e-9  # edges this much (m) farther than the nearest count as nearest too
+
+
 def _starts(owner, count):
     return np.searchsorted(owner, np.arange(count + 1))
 
@@ -106,8 +109,7 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
 def _vertex_side(mesh, model, flat, slot, close, near, bounds=None):
     """Mesh vertices within ``near`` of the convex pieces of the pairs ``close``: their pair (k,),
     vertex (k,), largest signed plane distance (k,) m (negative inside the piece) and the contact
-    normal (k, 3) pointing out of the link: the link face's; off a link edge or corner, that of
-    the two faces at the nearest edge which best faces the object's own normal there. ``bounds``, a list, receives (pairs, m) of
+    normal (k, 3) pointing out of the link (:func:`_piece_distance`). ``bounds``, a list, receives (pairs, m) of
     the cover spheres too far for any vertex to be within ``near``: their lower bounds, which
     keep the link's distance a bound when its nearest part is a face away from its edges."""
     count = len(model.links)
@@ -135,43 +137,57 @@ def _vertex_side(mesh, model, flat, slot, close, near, bounds=None):
         return empty
     vertex = np.concatenate([np.asarray(item, np.int64) for item in found if len(item)])
     which = np.repeat(np.arange(len(cover)), sizes)
-    piece = model.cover_piece[cover]
+    piece = model.cover_piece[cover][which]
     chosen = flat[slot[pair[which]]]
     local = np.einsum("mji,mj->mi", chosen[:, :3, :3], mesh.features[vertex] - chosen[:, :3, 3])
-    planes = model.planes[piece[which]]
-    signed = np.einsum("mfk,mk->mf", planes[..., :3], local) + planes[..., 3]
-    face = signed.argmax(axis=1)
-    gap = signed[np.arange(len(face)), face]
-    outward = np.einsum("mij,mj->mi", chosen[:, :3, :3], planes[np.arange(len(face)), face, :3])
-    # off a link face (one plane positive) the face's plane distance is the distance and its
-    # normal the contact's; off an edge or corner the nearest hull edge gives the distance, and
-    # the object's own (vertex) normal is the contact's, the link having none there
-    on_face = (signed > 0).sum(axis=1) <= 1
-    normal = outward.copy()
-    corner = np.flatnonzero(~on_face)
-    if len(corner):
-        owner_piece = piece[which][corner]
-        gap[corner], edge = _segment_distance(local[corner], model.piece_edges[owner_piece])
-        # of the two link faces at the nearest edge, the one facing the object's own normal there
-        sides = model.planes[owner_piece[:, None], model.edge_planes[owner_piece, edge], :3]  # (c, 2, 3)
-        sides = np.einsum("mij,mkj->mki", chosen[corner, :3, :3], sides)
-        facing = np.einsum("mki,mi->mk", sides, -mesh.feature_normals[vertex[corner]]).argmax(axis=1)
-        normal[corner] = sides[np.arange(len(corner)), facing]
-    return pair[which], vertex, gap, normal
+    gap, face_normal = _piece_distance(model, piece, local, np.einsum("mji,mj->mi", chosen[:, :3, :3],
+                                                                      -mesh.feature_normals[vertex]))
+    return pair[which], vertex, gap, np.einsum("mij,mj->mi", chosen[:, :3, :3], face_normal)
 
 
-def _segment_distance(points, segments):
-    """Distance (m,) of (m, 3) points to the nearest of their (m, E, 2, 3) segments (NaN-padded),
-    and which segment (m,) that is."""
-    start, span = segments[:, :, 0], segments[:, :, 1] - segments[:, :, 0]
-    offset = points[:, None] - start
-    with np.errstate(invalid="ignore", divide="ignore"):
-        along = np.clip(np.einsum("mek,mek->me", offset, span) / np.einsum("mek,mek->me", span, span), 0.0, 1.0)
-    foot = start + along[..., None] * span
-    distance = np.linalg.norm(points[:, None] - foot, axis=2)
-    best = np.where(np.isnan(distance), np.inf, distance).argmin(axis=1)
-    rows = np.arange(len(points))
-    return distance[rows, best], best
+def _piece_distance(model, piece, local, facing):
+    """Largest signed distance (m,) of link-frame points ``local`` (m, 3) to their convex
+    ``piece`` (m,), and the contact normal (m, 3, link frame) pointing out of the piece.
+
+    Off a face (one plane positive) that face's plane distance and normal; off an edge or
+    corner the nearest hull edge's distance, and of the faces at the nearest edges the one whose
+    normal best agrees with ``facing`` (m, 3; the object's inward normal there, in the link
+    frame), the link having no normal of its own there. Each piece is measured with its own
+    planes and edges (the model pads them to the largest piece's count)."""
+    gap, normal = np.empty(len(piece)), np.empty((len(piece), 3))
+    order = np.argsort(piece, kind="stable")
+    bounds = np.searchsorted(piece[order], np.arange(len(model.planes) + 1))
+    for number in np.flatnonzero(np.diff(bounds)):
+        rows = order[bounds[number]:bounds[number + 1]]
+        planes = model.planes[number]
+        planes = planes[planes[:, 3] > -np.inf]
+        signed = local[rows] @ planes[:, :3].T + planes[:, 3]
+        face = signed.argmax(axis=1)
+        gap[rows], normal[rows] = signed[np.arange(len(rows)), face], planes[face, :3]
+        corner = (signed > 0).sum(axis=1) > 1
+        if corner.any():
+            edges = model.piece_edges[number]
+            count = int(np.isfinite(edges[:, 0, 0]).sum())
+            at = rows[corner]
+            distance = _segment_distances(local[at], edges[:count])
+            gap[at] = distance.min(axis=1)
+            # at a corner several edges are nearest: all their faces are candidates, so that
+            # the choice does not hang on rounding
+            nearest = distance <= gap[at][:, None] + TIE_M
+            sides = planes[model.edge_planes[number, :count], :3]  # (E, 2, 3)
+            agree = np.where(nearest[..., None], np.einsum("eki,ci->cek", sides, facing[at]), -np.inf)
+            best = agree.reshape(len(at), -1).argmax(axis=1)
+            normal[at] = sides.reshape(-1, 3)[best]
+    return gap, normal
+
+
+def _segment_distances(points, segments):
+    """(m, E) distances of (m, 3) points to (E, 2, 3) segments."""
+    start, span = segments[:, 0], segments[:, 1] - segments[:, 0]
+    offset = points[:, None] - start  # (m, E, 3)
+    along = np.clip(np.einsum("mek,ek->me", offset, span) / np.einsum("ek,ek->e", span, span), 0.0, 1.0)
+    rest = offset - along[..., None] * span
+    return np.sqrt(np.einsum("mek,mek->me", rest, rest))
 
 
 def collides(mesh, model, poses, *, overlap=1e-6):

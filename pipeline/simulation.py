@@ -187,8 +187,19 @@ class GraspEngine:
         q, stops, steps = self._close(base, q)
         poses = link_poses(model, base, q)
         start = self._lap("closing", start)
+        # the closed hands' touching pairs, measured all at once
+        links = np.flatnonzero(model.link_radius > 0)
+        owner = np.repeat(np.arange(len(rows)), len(links))
+        distance, touches = measure(self.mesh, model, poses, owner, np.tile(links, len(rows)), near=self.near,
+                                    tolerance=self.settings.contact_tolerance_m)
+        distance = distance.reshape(len(rows), len(links))
+        order = np.argsort(touches.pair, kind="stable")
+        pair, points, normals = touches.pair[order], touches.points[order], touches.normals[order]
+        starts = np.searchsorted(pair, np.arange(len(rows) + 1) * len(links))
         for position, number in enumerate(rows):
-            results[number] = self._score(poses[position], base[position], q[position], stops[position],
+            found = slice(starts[position], starts[position + 1])
+            results[number] = self._score(distance[position], pair[found] - position * len(links), points[found],
+                                          normals[found], base[position], q[position], stops[position],
                                           steps[position], float(final[position]),
                                           float(retreat[position] - final[position]))
         self._lap("contacts", start)
@@ -307,21 +318,22 @@ class GraspEngine:
             walk = np.where(walk > 0, model.parent[np.maximum(walk, 0)], walk)
         return velocity
 
-    def _score(self, poses, base, q, stops, steps, retract, approach):
-        """The :class:`TrialResult` of one closed hand (link poses (L, 4, 4))."""
+    def _score(self, distance, pair, points, normals, base, q, stops, steps, retract, approach):
+        """The :class:`TrialResult` of one closed hand from its measure: ``distance`` (G,) of each
+        link with geometry, and the touching ``pair`` (t,) (index among those links), object
+        ``points`` (t, 3) and ``normals`` (t, 3)."""
         model, settings = self.model, self.settings
         quaternion = Rotation.from_matrix(base[:3, :3]).as_quat()
         pose = dict(retract_m=retract, approach_m=approach, base_position=tuple(map(float, base[:3, 3])),
                     base_orientation=tuple(map(float, quaternion)), joint_positions=tuple(map(float, q)),
                     close_steps=int(steps), finger_stops=tuple(STOPS[stop] for stop in stops))
         links = np.flatnonzero(model.link_radius > 0)
-        distance, touches = measure(self.mesh, model, poses[None], np.zeros(len(links), np.int64), links,
-                                    near=self.near, tolerance=settings.contact_tolerance_m)
         touched = links[distance <= settings.contact_tolerance_m]
         if (stops == 2).any():
             return TrialResult("step_cap", touched=tuple(model.links[link] for link in touched), **pose)
-        regions = [(links[pair], touches.points[touches.pair == pair], touches.normals[touches.pair == pair])
-                   for pair in np.unique(touches.pair)]
+        bounds = np.flatnonzero(np.diff(pair, prepend=-1)) if len(pair) else np.zeros(0, np.int64)
+        regions = [(links[pair[start]], points[start:end], normals[start:end])
+                   for start, end in zip(bounds, list(bounds[1:]) + [len(pair)])]
         return grade(regions, model, settings, centre=self.centre, torque_scale=self.torque_scale, **pose)
 
 
