@@ -191,31 +191,39 @@ def _segment_distances(points, segments):
 
 
 def collides(mesh, model, poses, *, overlap=1e-6):
-    """(n,) bool: the hand at each of the (n, L, 4, 4) link poses overlaps the object: a link's
-    surface point inside the mesh, or a mesh vertex deeper than ``overlap`` (m) inside a link's
-    convex piece. A link swallowed whole by the object has its points inside; an object part
-    swallowed by a link has its vertices inside."""
+    """The hand at each of the (n, L, 4, 4) link poses overlaps the object: a link's surface
+    point inside the mesh, or a mesh vertex deeper than ``overlap`` (m) inside a link's convex
+    piece. A link swallowed whole by the object has its points inside; an object part swallowed
+    by a link has its vertices inside.
+
+    Returns (n,) bool, and (n,) how far (m) each overlapping hand can certainly be translated
+    and still overlap (from the distance grid's bounds on points inside; 0 if none is known)."""
     count, total = len(model.links), len(poses)
     flat = poses.reshape(-1, 4, 4)
     slot = np.arange(total * count)
     rows, links = np.divmod(slot, count)
     radius = model.link_radius[links]
     low, high = mesh.bounds(transform(flat, slot, model.link_centre[links]))
+    swallowed = (high < -radius) & (radius > 0)  # the whole link is inside
     hit = np.zeros(total, bool)
-    hit[rows[(high < -radius) & (radius > 0)]] = True  # the whole link is inside
+    hit[rows[swallowed]] = True
+    depth = np.zeros(total)
+    # signed distance is 1-Lipschitz: a point at most s < 0 inside stays inside for a move < -s
+    np.maximum.at(depth, rows[swallowed], -high[swallowed] - radius[swallowed])
     unsure = np.flatnonzero((radius > 0) & (low <= radius) & (high >= -radius) & ~hit[rows])
     if not len(unsure):
-        return hit
+        return hit, depth
     starts = _starts(model.point_link, count)
     owner, point = expand_ranges(starts[links[unsure]], np.diff(starts)[links[unsure]])
     pair = unsure[owner]
     world = transform(flat, pair, model.points[point])
     low, high = mesh.bounds(world)
     inside = high < 0
+    np.maximum.at(depth, rows[pair[inside]], -high[inside])
     check = np.flatnonzero((low <= 0) & ~inside)
     inside[check] = mesh.inside(world[check])
     hit[rows[pair[inside]]] = True
     unsure = unsure[~hit[rows[unsure]]]  # the vertex test only where no link point is inside
     pair, _, signed, _ = _vertex_side(mesh, model, flat, slot, unsure, 0.0)
     hit[rows[pair[signed < -overlap]]] = True
-    return hit
+    return hit, depth

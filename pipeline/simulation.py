@@ -208,16 +208,16 @@ class GraspEngine:
     def _retreat(self, placed, direction):
         """(n,) the smallest multiple of ``retract_step_m`` that leaves each hand clear, inf if none."""
         step, limit = self.settings.retract_step_m, self.settings.retract_max_m
-        offsets = np.arange(0.0, limit + 1e-12, step)
         found = np.full(len(placed), np.inf)
+        steps = np.zeros(len(placed), np.int64)
         pending = np.arange(len(placed))
-        for offset in offsets:
-            if not len(pending):
-                break
-            hit = collides(self.mesh, self.model, _shifted(placed[pending], np.full(len(pending), offset),
-                                                            direction[pending]))
-            found[pending[~hit]] = offset
-            pending = pending[hit]
+        while len(pending):
+            offset = steps[pending] * step
+            hit, depth = collides(self.mesh, self.model, _shifted(placed[pending], offset, direction[pending]))
+            found[pending[~hit]] = offset[~hit]
+            # offsets that leave a link point certainly inside are skipped, not tried
+            steps[pending] += np.maximum(1, np.ceil(depth / step - 1e-9)).astype(np.int64)
+            pending = pending[hit & (steps[pending] * step <= limit + 1e-12)]
         return found
 
     def _distances(self, poses, wanted):
