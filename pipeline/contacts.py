@@ -12,7 +12,8 @@
    region is replaced by the corners of its 2D convex hull in the plane across its mean normal:
    a face contact becomes its polygon's corners, a line contact its two ends, a point stays a
    point. Each corner keeps its own normal. A link with more than ``max_corners`` corners in all
-   (a facetted curved patch, several regions) keeps that many, chosen farthest first: the 6D
+   (a facetted curved patch, several regions) keeps that many, chosen farthest first (from the one farthest from
+   their centroid, so the choice follows the geometry, not the order found): the 6D
    wrench hull's cost grows steeply with its points, while the patch's extent is what resists a
    torque.
 
@@ -22,6 +23,7 @@ objects' meshes).
 """
 
 import numpy as np
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, QhullError
 
 
@@ -45,39 +47,44 @@ def region_corners(points, normals, *, coplanar_deg=5.0, merge_m=1e-4, max_corne
     """
     if len(points) <= 2:
         return np.arange(len(points))
-    agree = normals @ normals.T >= np.cos(np.radians(coplanar_deg))
-    region = _components(agree)
+    # each candidate once: several measures can find the same touching point
+    rows = np.sort(np.unique(np.round(np.c_[points, normals], 12), axis=0, return_index=True)[1])
+    points, normals = points[rows], normals[rows]
+    # regions are found among the distinct normals: a link lying on one facet touches it at
+    # many points, but the facets and link faces involved are few
+    distinct, inverse = np.unique(np.round(normals, 12), axis=0, return_inverse=True)
+    agree = distinct @ distinct.T >= np.cos(np.radians(coplanar_deg))
+    region = np.zeros(len(points), np.int64) if agree.all() else \
+        connected_components(agree, directed=False)[1][inverse.reshape(-1)]
     keep = []
     for label in np.unique(region):
         members = np.flatnonzero(region == label)
         corners = members[_hull_2d(points[members], normals[members].mean(axis=0), merge_m)]
         keep += list(corners)
-    return np.sort(_farthest(points, np.array(keep, dtype=np.int64), max_corners))
-
-
-def _components(linked):
-    """(n,) label of each node's connected component in the symmetric (n, n) bool ``linked``
-    (its smallest member), by spreading the smallest label to neighbours until nothing changes;
-    the usual case, every normal agreeing, takes one step."""
-    label = np.arange(len(linked))
-    while True:
-        new = np.where(linked, label[None, :], len(linked)).min(axis=1)
-        if (new == label).all():
-            return label
-        label = new
+    return np.sort(rows[_farthest(points, np.array(keep, dtype=np.int64), max_corners)])
 
 
 def _farthest(points, indices, count):
-    """At most ``count`` of ``indices``: the first, then each time the one farthest from those kept."""
+    """At most ``count`` of ``indices``: the one farthest from their centroid, then each time
+    the one farthest from those kept; ties go to the smallest (x, y, z), so that the choice
+    follows the geometry, not the order."""
     if len(indices) <= count:
         return indices
-    chosen = [indices[0]]
-    gap = np.linalg.norm(points[indices] - points[indices[0]], axis=1)
-    while len(chosen) < count:
-        best = int(gap.argmax())
-        chosen.append(indices[best])
-        gap = np.minimum(gap, np.linalg.norm(points[indices] - points[indices[best]], axis=1))
-    return np.array(chosen)
+    chosen = points[indices]
+    # lexicographic rank of each point: the tie-break
+    rank = np.empty(len(chosen), np.int64)
+    rank[np.lexsort(chosen.T[::-1])] = np.arange(len(chosen))
+
+    def pick(values):
+        values = np.round(values, 12)
+        return int(np.flatnonzero(values == values.max())[rank[values == values.max()].argmin()])
+
+    kept = [pick(np.linalg.norm(chosen - chosen.mean(axis=0), axis=1))]
+    gap = np.linalg.norm(chosen - chosen[kept[0]], axis=1)
+    while len(kept) < count:
+        kept.append(pick(gap))
+        gap = np.minimum(gap, np.linalg.norm(chosen - chosen[kept[-1]], axis=1))
+    return indices[kept]
 
 
 def _hull_2d(points, normal, merge_m):

@@ -138,6 +138,11 @@ def _vertex_side(mesh, model, flat, slot, close, near, bounds=None):
     vertex = np.concatenate([np.asarray(item, np.int64) for item in found if len(item)])
     which = np.repeat(np.arange(len(cover)), sizes)
     piece = model.cover_piece[cover][which]
+    # a feature reached by several of a piece's overlapping covers is measured once (in the
+    # order found, which the contact regions' corner choice follows)
+    key = (pair[which] * len(model.planes) + piece) * len(mesh.features) + vertex
+    first = np.sort(np.unique(key, return_index=True)[1])
+    which, piece, vertex = which[first], piece[first], vertex[first]
     chosen = flat[slot[pair[which]]]
     local = np.einsum("mji,mj->mi", chosen[:, :3, :3], mesh.features[vertex] - chosen[:, :3, 3])
     gap, face_normal = _piece_distance(model, piece, local, np.einsum("mji,mj->mi", chosen[:, :3, :3],
