@@ -16,6 +16,7 @@ inside or outside), so a distance at or below ``near`` is always the exact measu
 one above it a lower bound that keeps steps conservative.
 """
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -132,27 +133,31 @@ def _vertex_side(mesh, model, flat, slot, close, near, bounds=None):
         return empty
     pair, cover = pair[needed], cover[needed]
     found = mesh.feature_tree.query_ball_point(centres[needed], reach[needed], return_sorted=False)
-    sizes = np.fromiter((len(item) for item in found), np.int64, len(found))
+    sizes = np.fromiter(map(len, found), np.int64, len(found))
     if not sizes.sum():
         return empty
-    vertex = np.concatenate([np.asarray(item, np.int64) for item in found if len(item)])
+    vertex = np.fromiter(itertools.chain.from_iterable(found), np.int64, sizes.sum())
     which = np.repeat(np.arange(len(cover)), sizes)
     piece = model.cover_piece[cover][which]
-    # a feature reached by several of a piece's overlapping covers is measured once (in the
-    # order found, which the contact regions' corner choice follows)
+    # a feature reached by several of a piece's overlapping covers is measured once, in the
+    # order found
     key = (pair[which] * len(model.planes) + piece) * len(mesh.features) + vertex
     first = np.sort(np.unique(key, return_index=True)[1])
     which, piece, vertex = which[first], piece[first], vertex[first]
     chosen = flat[slot[pair[which]]]
     local = np.einsum("mji,mj->mi", chosen[:, :3, :3], mesh.features[vertex] - chosen[:, :3, 3])
-    gap, face_normal = _piece_distance(model, piece, local, np.einsum("mji,mj->mi", chosen[:, :3, :3],
-                                                                      -mesh.feature_normals[vertex]))
-    return pair[which], vertex, gap, np.einsum("mij,mj->mi", chosen[:, :3, :3], face_normal)
+    facing = np.einsum("mji,mj->mi", chosen[:, :3, :3], -mesh.feature_normals[vertex])
+    gap, face_normal = _piece_distance(model, piece, local, facing, near)
+    # only features within ``near`` matter: the covers bound the farther ones
+    within = np.flatnonzero(gap <= near)
+    normal = np.einsum("mij,mj->mi", chosen[within, :3, :3], face_normal[within])
+    return pair[which[within]], vertex[within], gap[within], normal
 
 
-def _piece_distance(model, piece, local, facing):
-    """Largest signed distance (m,) of link-frame points ``local`` (m, 3) to their convex
-    ``piece`` (m,), and the contact normal (m, 3, link frame) pointing out of the piece.
+def _piece_distance(model, piece, local, facing, near):
+    """Signed distance (m,) of link-frame points ``local`` (m, 3) to their convex ``piece`` (m,),
+    and the contact normal (m, 3, link frame) pointing out of the piece; beyond ``near`` only a
+    lower bound (the largest plane distance) and no normal.
 
     Off a face (one plane positive) that face's plane distance and normal; off an edge or
     corner the nearest hull edge's distance, and of the faces at the nearest edges the one whose
@@ -169,7 +174,7 @@ def _piece_distance(model, piece, local, facing):
         signed = local[rows] @ planes[:, :3].T + planes[:, 3]
         face = signed.argmax(axis=1)
         gap[rows], normal[rows] = signed[np.arange(len(rows)), face], planes[face, :3]
-        corner = (signed > 0).sum(axis=1) > 1
+        corner = ((signed > 0).sum(axis=1) > 1) & (gap[rows] <= near)
         if corner.any():
             edges = model.piece_edges[number]
             count = int(np.isfinite(edges[:, 0, 0]).sum())
