@@ -11,11 +11,12 @@
    (connected by agreement, so a smoothly curved patch is one region). As GraspIt! does, a
    region is replaced by the corners of its 2D convex hull in the plane across its mean normal:
    a face contact becomes its polygon's corners, a line contact its two ends, a point stays a
-   point. Each corner keeps its own normal. A link with more than ``max_corners`` corners in all
-   (a facetted curved patch, several regions) keeps that many, chosen farthest first (from the one farthest from
-   their centroid, so the choice follows the geometry, not the order found): the 6D
-   wrench hull's cost grows steeply with its points, while the patch's extent is what resists a
-   torque.
+   point. Each corner keeps its own normal. Every corner counts, as in GraspIt (the epsilon
+   computation, :mod:`pipeline.quality`, grows a hull from the extreme wrenches, so many
+   contacts cost little). ``max_corners`` can cap them per link, chosen farthest first (from the
+   one farthest from their centroid, so the choice follows the geometry, not the order found);
+   a cap of 4 drops a facetted part's other facets, which moved Barrett on the chair's legs
+   from 80 to 31 % force closure.
 
 On a tessellated curved surface the normal is the touched facet's: it differs from the smooth
 surface's by at most half the angle between neighbouring facets (under a degree on the built-in
@@ -27,7 +28,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, QhullError
 
 
-def region_corners(points, normals, *, coplanar_deg=5.0, merge_m=1e-4, max_corners=4):
+def region_corners(points, normals, *, coplanar_deg=5.0, merge_m=1e-4, max_corners=0):
     """Indices of the contacts that represent one link's contact candidates.
 
     Parameters
@@ -39,7 +40,7 @@ def region_corners(points, normals, *, coplanar_deg=5.0, merge_m=1e-4, max_corne
     merge_m : float
         Candidates closer than this (m) with agreeing normals count once.
     max_corners : int
-        Most contacts kept for the link, farthest first.
+        Most contacts kept for the link, farthest first; 0 = every corner.
 
     Returns
     -------
@@ -65,10 +66,10 @@ def region_corners(points, normals, *, coplanar_deg=5.0, merge_m=1e-4, max_corne
 
 
 def _farthest(points, indices, count):
-    """At most ``count`` of ``indices``: the one farthest from their centroid, then each time
+    """At most ``count`` (0: all) of ``indices``: the one farthest from their centroid, then each time
     the one farthest from those kept; ties go to the smallest (x, y, z), so that the choice
     follows the geometry, not the order."""
-    if len(indices) <= count:
+    if not count or len(indices) <= count:
         return indices
     chosen = points[indices]
     # lexicographic rank of each point: the tie-break
