@@ -78,9 +78,12 @@ def _farthest(points, indices, count):
 
     def pick(values):
         values = np.round(values, 12)
-        return int(np.flatnonzero(values == values.max())[rank[values == values.max()].argmin()])
+        values[kept] = -np.inf  # never twice, though several corners share a position
+        best = values == values.max()
+        return int(np.flatnonzero(best)[rank[best].argmin()])
 
-    kept = [pick(np.linalg.norm(chosen - chosen.mean(axis=0), axis=1))]
+    kept = []
+    kept.append(pick(np.linalg.norm(chosen - chosen.mean(axis=0), axis=1)))
     gap = np.linalg.norm(chosen - chosen[kept[0]], axis=1)
     while len(kept) < count:
         kept.append(pick(gap))

@@ -108,8 +108,8 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
 
 
 def _vertex_side(mesh, model, flat, slot, close, near, bounds=None):
-    """Mesh vertices within ``near`` of the convex pieces of the pairs ``close``: their pair (k,),
-    vertex (k,), largest signed plane distance (k,) m (negative inside the piece) and the contact
+    """Mesh features within ``near`` of the convex pieces of the pairs ``close``: their pair (k,),
+    feature (k,), distance to the piece (k,) m (the largest plane distance, negative, inside) and the contact
     normal (k, 3) pointing out of the link (:func:`_piece_distance`). ``bounds``, a list, receives (pairs, m) of
     the cover spheres too far for any vertex to be within ``near``: their lower bounds, which
     keep the link's distance a bound when its nearest part is a face away from its edges."""
@@ -159,8 +159,8 @@ def _piece_distance(model, piece, local, facing, near):
     and the contact normal (m, 3, link frame) pointing out of the piece; beyond ``near`` only a
     lower bound (the largest plane distance) and no normal.
 
-    Off a face (one plane positive) that face's plane distance and normal; off an edge or
-    corner the nearest hull edge's distance, and of the faces at the nearest edges the one whose
+    Off a face (its foot on the face's plane inside the piece) that face's plane distance and
+    normal; off an edge or corner the nearest hull edge's distance, and of the faces at the nearest edges the one whose
     normal best agrees with ``facing`` (m, 3; the object's inward normal there, in the link
     frame), the link having no normal of its own there. Each piece is measured with its own
     planes and edges (the model pads them to the largest piece's count)."""
@@ -175,6 +175,10 @@ def _piece_distance(model, piece, local, facing, near):
         face = signed.argmax(axis=1)
         gap[rows], normal[rows] = signed[np.arange(len(rows)), face], planes[face, :3]
         corner = ((signed > 0).sum(axis=1) > 1) & (gap[rows] <= near)
+        # the largest plane distance is the distance when the point's foot on that face lies in
+        # the piece (a point above a face beside an obtuse edge is off both planes)
+        foot = signed[corner] - gap[rows][corner, None] * (planes[face[corner], :3] @ planes[:, :3].T)
+        corner[np.flatnonzero(corner)[(foot <= 0).all(axis=1)]] = False
         if corner.any():
             edges = model.piece_edges[number]
             count = int(np.isfinite(edges[:, 0, 0]).sum())

@@ -187,13 +187,17 @@ def _nearest_facet(wrenches):
         # few per round gave the smallest hulls (measured: 8 of them, 25 % faster than all)
         wanted = np.flatnonzero((support - distance > BEYOND_TOL) & (distance < upper))
         wanted = wanted[np.argsort(distance[wanted], kind="stable")[:GROW_FACETS]]
-        chosen = np.union1d(chosen, along[:, wanted].argmax(axis=0))
+        grown = np.union1d(chosen, along[:, wanted].argmax(axis=0))
+        if len(grown) == len(chosen):  # a joggled (QJ) hull's facets can miss its own points
+            return None
+        chosen = grown
 
 
 def epsilon_quality(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, torsional_friction=0.0,
                     center=None, volume=False):
     """Ferrari-Canny epsilon (L1) of a grasp; see :func:`contact_wrenches` for the parameters.
-    ``volume``: also the hull's volume (builds the whole hull: many times slower).
+    ``volume``: also the hull's volume, from the whole hull, which then gives epsilon too (many
+    times slower; the same epsilon to Qhull's rounding).
 
     Returns
     -------
@@ -216,10 +220,8 @@ def epsilon_quality(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, torsi
     if len(wrenches) < 7 or spread[5] <= RANK_TOL * spread[0]:
         return none
     whole = _hull(wrenches) if volume else None
-    if volume and whole is None:
-        return none
-    distance = _nearest_facet(wrenches)
-    if distance is None:  # a small hull failed: the whole one decides
+    distance = None if volume else _nearest_facet(wrenches)
+    if distance is None:  # the whole hull asked for, or a small hull failed
         whole = whole or _hull(wrenches)
         if whole is None:
             return none

@@ -61,3 +61,12 @@ def test_order_and_repeats_do_not_change_the_corners(rng):
     for _ in range(5):
         order = rng.permutation(np.r_[np.arange(len(both)), rng.integers(0, len(both), 20)])
         assert as_set(both[order][region_corners(both[order], outward[order], max_corners=4)]) == expected
+
+
+def test_a_cap_never_keeps_a_corner_twice():
+    """Corners sharing a position (two normals at one point) are distinct contacts: a cap
+    larger than the number of positions keeps each once."""
+    points = np.array([(0, 0, 0), (0.01, 0, 0), (0, 0, 0), (0.01, 0, 0), (0.005, 0, 0)], float)
+    normals = np.array([(0, 0, 1), (0, 0, 1), (0, 1, 0), (0, 1, 0), (0, 0.6, 0.8)], float)
+    kept = region_corners(points, normals, max_corners=4)
+    assert len(set(kept.tolist())) == 4

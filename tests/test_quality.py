@@ -247,6 +247,23 @@ def test_grown_hull_gives_the_whole_hulls_epsilon(spread, rng):
     assert True in verdicts and (spread == np.pi or False in verdicts)
 
 
+def test_joggled_small_hulls_still_end(monkeypatch, rng):
+    """Under Qhull's joggle (QJ, the last option) a small hull's facets can miss its own points
+    by ~1e-9, so growing it may add nothing: epsilon then comes from the whole hull instead of
+    looping (it did, on 16 of 60 of these grasps)."""
+    import pipeline.quality as quality
+
+    monkeypatch.setattr(quality, "QHULL_OPTIONS", ("QJ",))
+    for _ in range(30):
+        outward = rng.normal(size=(rng.integers(3, 12), 3))
+        outward /= np.linalg.norm(outward, axis=1, keepdims=True)
+        options = dict(mu=0.5, torque_scale=0.03)
+        wrenches = contact_wrenches(0.03 * outward, -outward, **options).reshape(-1, 6)
+        exact = -ConvexHull(wrenches).equations[:, -1].max()
+        joggled = epsilon_quality(0.03 * outward, -outward, **options).epsilon
+        assert joggled == pytest.approx(max(exact, 0.0), abs=1e-6)
+
+
 def test_volume_only_when_asked():
     points, normals = four_faces()
     assert np.isnan(epsilon_quality(points, normals, torque_scale=A).volume)
