@@ -11,7 +11,7 @@ export UV_PYTHON_DOWNLOADS := never
 export UV_PROJECT_ENVIRONMENT := $(abspath $(VENV))
 export PATH := $(abspath $(VENV))/bin:$(PATH)
 
-.PHONY: setup run test bench sysdeps clean
+.PHONY: setup run test lint bench sysdeps clean
 
 setup: sysdeps $(VENV)/.synced
 
@@ -38,6 +38,9 @@ run: setup
 
 test: setup
 	python -m pytest -q
+
+lint: setup
+	ruff check pipeline stages tests
 
 bench: setup
 	python -m pipeline bench
