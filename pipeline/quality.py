@@ -167,9 +167,9 @@ def _nearest_facet(wrenches):
     axes = np.concatenate([np.eye(6), -np.eye(6)])
     # the extremes along the axes: growing from fewer, larger hulls was slower (measured)
     chosen = np.unique((wrenches @ axes.T).argmax(axis=0))
+    if len(chosen) < 7:  # a 6D hull needs 7 points; the rounds only add more
+        chosen = np.union1d(chosen, np.setdiff1d(np.arange(len(wrenches)), chosen)[:7 - len(chosen)])
     while True:
-        if len(chosen) < 7:
-            chosen = np.union1d(chosen, np.setdiff1d(np.arange(len(wrenches)), chosen)[:7 - len(chosen)])
         hull = _hull(wrenches[chosen])
         if hull is None:
             return None
@@ -219,10 +219,9 @@ def epsilon_quality(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, torsi
     spread = np.linalg.svd(wrenches - wrenches.mean(axis=0), compute_uv=False)
     if len(wrenches) < 7 or spread[5] <= RANK_TOL * spread[0]:
         return none
-    whole = _hull(wrenches) if volume else None
     distance = None if volume else _nearest_facet(wrenches)
-    if distance is None:  # the whole hull asked for, or a small hull failed
-        whole = whole or _hull(wrenches)
+    if distance is None:  # the volume asked for, or a small hull failed: the whole hull decides
+        whole = _hull(wrenches)
         if whole is None:
             return none
         distance = -whole.equations[:, -1].max()
