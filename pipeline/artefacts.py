@@ -35,6 +35,7 @@ import contextlib
 import dataclasses
 import hashlib
 import json
+import math
 import os
 import tempfile
 import zipfile
@@ -74,6 +75,26 @@ def atomic_path(path):
         os.replace(tmp, path)
     finally:
         Path(tmp).unlink(missing_ok=True)
+
+
+def json_ready(value):
+    """``value`` with NaN and infinities as None, numpy values as Python ones: JSON has no such
+    numbers (Foxglove's parser refuses them). An empty result's rate is NaN in memory and in
+    tables, null in JSON."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: json_ready(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_ready(item) for item in value]
+    if isinstance(value, (np.ndarray, np.generic)):
+        return json_ready(value.tolist())
+    return value
+
+
+def json_bytes(value, *, indent=None):
+    """``value`` as strict JSON (:func:`json_ready`), UTF-8."""
+    return json.dumps(json_ready(value), indent=indent, allow_nan=False).encode()
 
 
 def atomic_write(path, write):

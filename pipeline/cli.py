@@ -3,7 +3,6 @@
 import argparse
 import contextlib
 import functools
-import json
 import os
 import sys
 import time
@@ -54,8 +53,8 @@ def stage_args(description, *names, argv=None):
 
 
 class StageRun:
-    """What a running stage reports: counts and warnings for its MCAP log, and entities for its
-    rerun recording (see :func:`stage_run`)."""
+    """What a running stage reports: counts and warnings for its MCAP log; its rerun recording
+    is written by :func:`pipeline.recording.record_stage` (see :func:`stage_run`)."""
 
     def __init__(self, stage, log, rrd, recording_id, record, outputs):
         self.stage, self.log, self.rrd, self.recording_id, self.enabled = stage, log, rrd, recording_id, record
@@ -73,28 +72,6 @@ class StageRun:
         if self.log:
             self.log.log("/warning", {"message": message})
 
-    def record(self, draw):
-        """Write the stage's recording: ``draw(stream, root)`` logs the entities under ``root``.
-
-        rerun is imported only here (0.6 s a process). With ``record`` off the .rrd is written
-        empty, so that DVC still finds the declared output.
-        """
-        if not self.rrd:
-            return
-        from .artefacts import atomic_write
-
-        start = time.perf_counter()
-        if not self.enabled:
-            atomic_write(self.rrd, lambda stream: None)
-            return
-        from .recording import rerun_recording, send_blueprint
-
-        root = f"/{self.recording_id}"
-        with rerun_recording(self.rrd, recording_id=self.recording_id) as stream:
-            send_blueprint(stream, root)
-            draw(stream, root)
-        self.record_seconds += time.perf_counter() - start
-
 
 @contextlib.contextmanager
 def stage_run(args, stage, *, params=None, inputs=(), outputs=(), record=True):
@@ -105,12 +82,12 @@ def stage_run(args, stage, *, params=None, inputs=(), outputs=(), record=True):
     process's since it started, imports included, and the part spent recording), and ``--log``:
     an MCAP log of the stage's start, ``params`` (dict), the path, size and SHA-256 of each of
     ``inputs`` and ``outputs``, the counts, warnings (Python warnings raised in the block
-    included), the timing and the end. Every file is renamed into place only when complete; the
-    timing and the log are written only when the whole block succeeds, so a failed stage leaves
-    neither (its artefacts, each atomic, may be there: DVC reruns the stage). ``record`` (params
-    ``record``) turns the recording off.
+    included), the timing, the ``pipeline`` modules loaded (``/modules``) and the end. Every
+    file is renamed into place only when complete; the timing and the log are written only when
+    the whole block succeeds, so a failed stage leaves neither (its artefacts, each atomic, may
+    be there: DVC reruns the stage). ``record`` (params ``record``) turns the recording off.
     """
-    from .artefacts import atomic_write
+    from .artefacts import atomic_write, json_bytes
     from .logbook import mcap_log
 
     start = time.perf_counter()
@@ -135,8 +112,10 @@ def stage_run(args, stage, *, params=None, inputs=(), outputs=(), record=True):
                 log.artefact("output", path)
             log.log("/counts", run.counts)
             log.log("/timing", timing)
+            # the code that ran, to check against the stage's deps (pipeline.dag)
+            log.log("/modules", {"modules": sorted(name for name in sys.modules if name.split(".")[0] == "pipeline")})
         if args.timing:
-            atomic_write(args.timing, lambda stream: stream.write(json.dumps(timing).encode()))
+            atomic_write(args.timing, lambda stream: stream.write(json_bytes(timing)))
 
 
 def _process_age():

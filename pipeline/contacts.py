@@ -27,8 +27,10 @@ import numpy as np
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, QhullError
 
+from .tol import tol
 
-def region_corners(points, normals, *, coplanar_deg=5.0, merge_m=1e-4, max_corners=0):
+
+def region_corners(points, normals, *, coplanar_deg=5.0, merge_m=None, max_corners=0):
     """Indices of the contacts that represent one link's contact candidates.
 
     Parameters
@@ -37,8 +39,9 @@ def region_corners(points, normals, *, coplanar_deg=5.0, merge_m=1e-4, max_corne
     normals : (n, 3) float, outward unit normals
     coplanar_deg : float
         Largest angle (degrees) between normals of one region.
-    merge_m : float
-        Candidates closer than this (m) with agreeing normals count once.
+    merge_m : float, optional
+        Candidates closer than this (m) with agreeing normals count once (default
+        :attr:`pipeline.tol.Tolerances.contact_merge_m`).
     max_corners : int
         Most contacts kept for the link, farthest first; 0 = every corner.
 
@@ -48,12 +51,13 @@ def region_corners(points, normals, *, coplanar_deg=5.0, merge_m=1e-4, max_corne
     """
     if len(points) <= 2:
         return np.arange(len(points))
+    merge_m = tol.contact_merge_m if merge_m is None else merge_m
     # each candidate once: several measures can find the same touching point
-    rows = np.sort(np.unique(np.round(np.c_[points, normals], 12), axis=0, return_index=True)[1])
+    rows = np.sort(np.unique(np.round(np.c_[points, normals], tol.point_decimals), axis=0, return_index=True)[1])
     points, normals = points[rows], normals[rows]
     # regions are found among the distinct normals: a link lying on one facet touches it at
     # many points, but the facets and link faces involved are few
-    distinct, inverse = np.unique(np.round(normals, 12), axis=0, return_inverse=True)
+    distinct, inverse = np.unique(np.round(normals, tol.point_decimals), axis=0, return_inverse=True)
     agree = distinct @ distinct.T >= np.cos(np.radians(coplanar_deg))
     region = np.zeros(len(points), np.int64) if agree.all() else \
         connected_components(agree, directed=False)[1][inverse.reshape(-1)]
@@ -77,7 +81,7 @@ def _farthest(points, indices, count):
     rank[np.lexsort(chosen.T[::-1])] = np.arange(len(chosen))
 
     def pick(values):
-        values = np.round(values, 12)
+        values = np.round(values, tol.point_decimals)
         values[kept] = -np.inf  # never twice, though several corners share a position
         best = values == values.max()
         return int(np.flatnonzero(best)[rank[best].argmin()])

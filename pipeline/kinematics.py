@@ -26,6 +26,7 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from .errors import BadParamsError
+from .tol import tol
 from .urdf import read_urdf
 
 
@@ -135,7 +136,7 @@ def _edge_points(vertices, edges, spacing):
     owner = np.repeat(np.arange(len(edges)), counts + 1)
     fraction = np.concatenate([np.linspace(0.0, 1.0, count + 1) for count in counts])
     points = starts[owner] + fraction[:, None] * (ends - starts)[owner]
-    return np.unique(np.round(points, 12), axis=0)
+    return np.unique(np.round(points, tol.point_decimals), axis=0)
 
 
 def _shape_mesh(shape):
@@ -181,7 +182,7 @@ def _shape_points_and_hull(shape, spacing):
         boundary = trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)
         edges = np.concatenate([sharp, mesh.edges_sorted[boundary]]) if len(boundary) else sharp
         local = np.concatenate([_edge_points(vertices, edges, spacing), vertices]) if len(edges) else vertices
-        local = np.unique(np.round(local, 12), axis=0)
+        local = np.unique(np.round(local, tol.point_decimals), axis=0)
         hull = vertices
     rotation, translation = shape.pose[:3, :3], shape.pose[:3, 3]
     return local @ rotation.T + translation, hull @ rotation.T + translation
@@ -203,7 +204,7 @@ def _cover(hull, planes, cell=0.01):
 def _planes(hull_points):
     """(f, 4) outward unit planes of the convex hull of (h, 3) points."""
     hull = ConvexHull(hull_points)
-    equations = np.unique(np.round(hull.equations, 9), axis=0)
+    equations = np.unique(np.round(hull.equations, tol.plane_decimals), axis=0)
     return equations
 
 
@@ -217,9 +218,9 @@ def _hull_edges(hull_points, planes):
             edge = tuple(sorted((simplex[corner], simplex[(corner + 1) % 3])))
             owner.setdefault(edge, []).append(facet)
     edges = [(edge, facets) for edge, facets in owner.items()
-             if len(facets) == 2 and not np.allclose(hull.equations[facets[0]], hull.equations[facets[1]], atol=1e-9)]
+             if len(facets) == 2 and not np.allclose(hull.equations[facets[0]], hull.equations[facets[1]], atol=10.0 ** -tol.plane_decimals)]
     ends = np.array([edge for edge, _ in edges], dtype=np.int64).reshape(-1, 2)
-    sides = np.array([[np.abs(planes - np.round(hull.equations[facet], 9)).sum(axis=1).argmin() for facet in facets]
+    sides = np.array([[np.abs(planes - np.round(hull.equations[facet], tol.plane_decimals)).sum(axis=1).argmin() for facet in facets]
                       for _, facets in edges], dtype=np.int64).reshape(-1, 2)
     return hull.points[ends], sides
 

@@ -2,19 +2,18 @@
 tooling, Foxglove or pandas read back (README, "Logs").
 
 Topics: ``/stage`` (start, end), ``/params``, ``/artefacts`` (path and SHA-256 of each input
-and output), ``/counts``, ``/timing``, ``/warning`` and ``/trials`` (one message per trial).
+and output), ``/counts``, ``/timing``, ``/warning``, ``/modules`` (the ``pipeline`` modules
+loaded) and ``/trials`` (one message per trial).
 Every message is stamped with the wall clock (ns).
 """
 
 import contextlib
 import hashlib
 import json
-import math
 import time
 
-import numpy as np
 
-from .artefacts import atomic_path
+from .artefacts import atomic_path, json_ready
 
 _NUMBER = {"type": "number"}
 SCHEMAS = {
@@ -28,6 +27,8 @@ SCHEMAS = {
     "/timing": {"type": "object", "properties": {"stage": {"type": "string"}, "seconds": _NUMBER,
                                                  "process_seconds": _NUMBER, "record_seconds": _NUMBER}},
     "/warning": {"type": "object", "properties": {"message": {"type": "string"}}},
+    "/modules": {"type": "object", "properties": {"modules": {"type": "array", "items": {"type": "string"}}},
+                 "description": "the pipeline modules the stage loaded"},
     "/trials": {"type": "object", "description": "one grasp trial: every column of trials.parquet",
                 "properties": {"hand": {"type": "string"}, "planner": {"type": "string"},
                                "outcome": {"type": "string"}, "epsilon": _NUMBER}},
@@ -49,7 +50,7 @@ class McapLog:
                                                                 schema_id=schema)
         now = time.time_ns()
         self.writer.add_message(self.channels[topic], log_time=now, publish_time=now,
-                                data=json.dumps(_finite(message), default=str, allow_nan=False).encode())
+                                data=json.dumps(json_ready(message), default=str, allow_nan=False).encode())
 
     def artefact(self, role, path):
         """An ``/artefacts`` message: ``role`` ("input" or "output"), the path, its size and SHA-256."""
@@ -70,20 +71,6 @@ def file_digest(path):
             digest.update(block)
             size += len(block)
     return digest.hexdigest(), size
-
-
-def _finite(value):
-    """``value`` with NaN and infinities as None: JSON has no such numbers (Foxglove's parser
-    refuses them), and a trial that failed early has no pose."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {key: _finite(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_finite(item) for item in value]
-    if isinstance(value, (np.ndarray, np.generic)):
-        return _finite(value.tolist())
-    return value
 
 
 @contextlib.contextmanager

@@ -1,8 +1,11 @@
 """Typed, validated params: one frozen dataclass per ``params.yaml`` section.
 
-These defaults are the project's single documented place for tuning constants and
-tolerances; ``params.yaml`` overrides them. An unknown key, a missing section or a
-value of the wrong type fails with the file, section and key in the message.
+These defaults are the project's single documented place for the tunable settings (numerical
+tolerances of the algorithms are in :mod:`pipeline.tol`). A params file must hold every
+section and key: the repository's ``params.yaml`` equals these defaults (a test proves it), so
+``dvc repro``, ``plan`` and ``batch`` read the same values; ``python -m pipeline.params`` prints
+them as a complete file. A missing or unknown key, or a value of the wrong type, fails with the
+file, section and key in the message.
 """
 
 import dataclasses
@@ -161,8 +164,9 @@ class CandidatesParams:
 class SimulateParams:
     """Grasp trials (stage ``simulate``, paper IV; see :mod:`pipeline.simulation`)."""
 
-    spheres_per_object: int = 200
-    """Random spheres (with candidates) per hand; all their candidates are tried (paper: 200)."""
+    spheres_per_object: int = 50
+    """Random spheres (with candidates) per hand; all their candidates are tried (the paper: 200;
+    50 keeps the default run's trials within about 10 minutes on 2 cores)."""
     baseline_trials: int = -1
     """Surface-normal baseline trials per hand: -1 = as many as the MAT trials, 0 = none."""
     mu: float = 0.5
@@ -216,10 +220,10 @@ class SimulateParams:
         _require(self.workers >= 0, "simulate", "workers", "must be >= 0")
 
     def world_settings(self):
-        """Keyword arguments of :class:`pipeline.simulation.GraspEngine` (its TrialSettings)."""
-        from .simulation import TrialSettings
-
-        return {key: getattr(self, key) for key in TrialSettings.__dataclass_fields__}
+        """Keyword arguments of :class:`pipeline.simulation.GraspEngine` (its TrialSettings):
+        every field but the protocol's."""
+        return {field.name: getattr(self, field.name) for field in dataclasses.fields(self)
+                if field.name not in ("spheres_per_object", "baseline_trials", "workers")}
 
 
 @dataclass(frozen=True)
@@ -271,15 +275,18 @@ def _require(condition, section, key, problem):
 
 
 def section_from_mapping(cls, mapping, *, section, source="params"):
-    """Build the dataclass ``cls`` from a mapping, rejecting unknown keys and bad types."""
-    if mapping is None:
-        mapping = {}
+    """Build the dataclass ``cls`` from a mapping holding every one of its keys, rejecting
+    missing and unknown keys and bad types."""
     if not isinstance(mapping, dict):
         raise BadParamsError(f"{source}: section '{section}' must be a mapping, got {type(mapping).__name__}")
     known = {f.name: f for f in dataclasses.fields(cls)}
     unknown = sorted(set(mapping) - set(known))
     if unknown:
         raise BadParamsError(f"{source}: {section}: unknown key {unknown[0]!r} (known: {', '.join(known)})")
+    missing = [key for key in known if key not in mapping]
+    if missing:
+        raise BadParamsError(f"{source}: {section}: missing key {missing[0]!r} "
+                             "(`python -m pipeline.params` prints a complete file)")
     values = {}
     for key, value in mapping.items():
         expected = known[key].type
@@ -294,6 +301,14 @@ def section_from_mapping(cls, mapping, *, section, source="params"):
         return cls(**values)
     except BadParamsError as err:
         raise BadParamsError(f"{source}: {str(err).removeprefix('params: ')}") from None
+
+
+def defaults():
+    """Every section and key of a params file with its default value (a dict for YAML); no
+    objects."""
+    params = Params()
+    return {"seed": params.seed, "objects": {}, "record": params.record, "scales": list(params.scales),
+            **{name: dataclasses.asdict(getattr(params, name)) for name in SECTIONS}}
 
 
 def load_params(path="params.yaml"):
@@ -316,20 +331,31 @@ def load_params(path="params.yaml"):
     unknown = sorted(set(raw) - {f.name for f in dataclasses.fields(Params)})
     if unknown:
         raise BadParamsError(f"{path}: unknown section {unknown[0]!r}")
-    seed = raw.get("seed", 0)
+    missing = [f.name for f in dataclasses.fields(Params) if f.name not in raw]
+    if missing:
+        raise BadParamsError(f"{path}: missing section {missing[0]!r} (`python -m pipeline.params` prints a "
+                             "complete file)")
+    seed = raw["seed"]
     if type(seed) is not int or seed < 0:
         raise BadParamsError(f"{path}: seed must be a non-negative int, got {seed!r}")
-    objects = raw.get("objects", {}) or {}
+    objects = raw["objects"] or {}
     if not isinstance(objects, dict):
         raise BadParamsError(f"{path}: objects must be a mapping name -> spec")
-    scales = raw.get("scales", [1.0])
+    scales = raw["scales"]
     if not (isinstance(scales, list) and scales and all(
             isinstance(scale, (int, float)) and not isinstance(scale, bool) and math.isfinite(scale) and scale > 0
             for scale in scales) and len(set(scales)) == len(scales)):
         raise BadParamsError(f"{path}: scales must be a list of distinct positive numbers, got {scales!r}")
-    record = raw.get("record", True)
+    record = raw["record"]
     if type(record) is not bool:
         raise BadParamsError(f"{path}: record must be true or false, got {record!r}")
-    sections = {name: section_from_mapping(cls, raw.get(name), section=name, source=str(path))
+    sections = {name: section_from_mapping(cls, raw[name], section=name, source=str(path))
                 for name, cls in SECTIONS.items()}
+    strangers = [name for name in sections["report"].figure_objects if objects and name not in objects]
+    if strangers:
+        raise BadParamsError(f"{path}: report.figure_objects names {strangers[0]!r}, which is not under objects")
     return Params(seed=seed, objects=objects, scales=tuple(scales), record=record, **sections)
+
+
+if __name__ == "__main__":
+    print(yaml.safe_dump(defaults(), sort_keys=False), end="")

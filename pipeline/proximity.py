@@ -23,6 +23,7 @@ import numpy as np
 
 from .arrays import expand_ranges
 from .kinematics import transform
+from .tol import tol
 
 
 @dataclass(frozen=True)
@@ -34,9 +35,6 @@ class Touches:
     pair: np.ndarray
     points: np.ndarray
     normals: np.ndarray
-
-
-TIE_M = 1e-9  # edges this much (m) farther than the nearest count as nearest too
 
 
 def _starts(owner, count):
@@ -187,7 +185,7 @@ def _piece_distance(model, piece, local, facing, near):
             gap[at] = distance.min(axis=1)
             # at a corner several edges are nearest: all their faces are candidates, so that
             # the choice does not hang on rounding
-            nearest = distance <= gap[at][:, None] + TIE_M
+            nearest = distance <= gap[at][:, None] + tol.edge_tie_m
             sides = planes[model.edge_planes[number, :count], :3]  # (E, 2, 3)
             agree = np.where(nearest[..., None], np.einsum("eki,ci->cek", sides, facing[at]), -np.inf)
             best = agree.reshape(len(at), -1).argmax(axis=1)
@@ -204,14 +202,15 @@ def _segment_distances(points, segments):
     return np.sqrt(np.einsum("mek,mek->me", rest, rest))
 
 
-def collides(mesh, model, poses, *, overlap=1e-6):
+def collides(mesh, model, poses, *, overlap=None):
     """The hand at each of the (n, L, 4, 4) link poses overlaps the object: a link's surface
     point inside the mesh, or a mesh vertex deeper than ``overlap`` (m) inside a link's convex
-    piece. A link swallowed whole by the object has its points inside; an object part swallowed
-    by a link has its vertices inside.
+    piece (default :attr:`pipeline.tol.Tolerances.overlap_m`). A link swallowed whole by the
+    object has its points inside; an object part swallowed by a link has its vertices inside.
 
     Returns (n,) bool, and (n,) how far (m) each overlapping hand can certainly be translated
     and still overlap (from the distance grid's bounds on points inside; 0 if none is known)."""
+    overlap = tol.overlap_m if overlap is None else overlap
     count, total = len(model.links), len(poses)
     flat = poses.reshape(-1, 4, 4)
     slot = np.arange(total * count)

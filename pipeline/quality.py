@@ -34,12 +34,9 @@ from scipy.spatial import ConvexHull, QhullError
 
 from .arrays import unit_rows
 from .checks import as_points
+from .tol import tol
 
-RANK_TOL = 1e-9     # smallest singular value / largest below which the wrenches are flat
-INSIDE_TOL = 1e-12  # origin-to-facet distance below which the origin counts as on the hull
 GROW_FACETS = 8  # facets whose farthest wrench joins the grown hull per round
-BEYOND_TOL = 1e-10  # how far past a facet's plane a wrench must lie to count as beyond it
-DEDUPE_DECIMALS = 12  # identical wrenches (e.g. symmetric contacts) only slow Qhull down
 # Without pre-merging (Q0) Qhull is 2-3x faster in 6D and the facet offsets are the same; when
 # it reports a precision error, co-planar cone edges of symmetric grasps (box pads, rings of
 # fingers) need merging (Qx), sometimes wide merges (Q12); joggle (QJ, error ~1e-9 relative) is
@@ -180,12 +177,12 @@ def _nearest_facet(wrenches):
         # the small hull's epsilon bounds the whole one's from below, the whole one's support
         # along any unit direction from above (and a support <= 0 puts the origin outside)
         lower, upper = distance.min(), support.min()
-        if upper <= INSIDE_TOL or upper - lower <= BEYOND_TOL:
+        if upper <= tol.hull_inside or upper - lower <= tol.hull_beyond:
             return float(min(lower, upper))
         # the nearest facets below the upper bound get their farthest wrench (the nearest one is
         # among them: its support is at least the upper bound, so a wrench lies beyond it); a
         # few per round gave the smallest hulls (measured: 8 of them, 25 % faster than all)
-        wanted = np.flatnonzero((support - distance > BEYOND_TOL) & (distance < upper))
+        wanted = np.flatnonzero((support - distance > tol.hull_beyond) & (distance < upper))
         wanted = wanted[np.argsort(distance[wanted], kind="stable")[:GROW_FACETS]]
         grown = np.union1d(chosen, along[:, wanted].argmax(axis=0))
         if len(grown) == len(chosen):  # a joggled (QJ) hull's facets can miss its own points
@@ -213,11 +210,11 @@ def epsilon_quality(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, torsi
     wrenches = wrenches.reshape(-1, 6)
     # keep the contacts' order: a lexicographically sorted input makes Qhull's incremental
     # construction hit precision errors (42 of 50 random grasps without pre-merging)
-    _, first = np.unique(np.round(wrenches, DEDUPE_DECIMALS), axis=0, return_index=True)
+    _, first = np.unique(np.round(wrenches, tol.wrench_decimals), axis=0, return_index=True)
     wrenches = wrenches[np.sort(first)]
     # Qhull needs a full-dimensional point set: check the affine rank before calling it
     spread = np.linalg.svd(wrenches - wrenches.mean(axis=0), compute_uv=False)
-    if len(wrenches) < 7 or spread[5] <= RANK_TOL * spread[0]:
+    if len(wrenches) < 7 or spread[5] <= tol.rank * spread[0]:
         return none
     distance = None if volume else _nearest_facet(wrenches)
     if distance is None:  # the volume asked for, or a small hull failed: the whole hull decides
@@ -225,5 +222,5 @@ def epsilon_quality(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, torsi
         if whole is None:
             return none
         distance = -whole.equations[:, -1].max()
-    inside = distance > INSIDE_TOL
+    inside = distance > tol.hull_inside
     return Quality(float(distance) if inside else 0.0, float(whole.volume) if volume else float("nan"), bool(inside))

@@ -19,13 +19,14 @@ run never leaves a truncated file under the final name.
 """
 
 import contextlib
+import time
 
 import numpy as np
 
-from .artefacts import atomic_path
+from .artefacts import atomic_path, atomic_write
 from .arrays import vectors
-from .figures import CLASS_COLOURS as FIGURE_CLASS_COLOURS
-from .figures import diameter_colours
+from .colours import CLASS_COLOURS as FIGURE_CLASS_COLOURS
+from .colours import diameter_colours
 from .logbook import mcap_log
 
 TRIAL_TIMELINE = "trial"
@@ -192,6 +193,23 @@ def send_blueprint(stream, root):
                      rrb.TimeSeriesView(origin=f"{root}/outcome", name="outcome (0 force closure ... 4 error)"),
                      rrb.TextLogView(origin=f"{root}/outcome", name="trials")),
         column_shares=[3, 1])))
+
+
+def record_stage(run, draw):
+    """Write a DVC stage's recording (:class:`pipeline.cli.StageRun` ``run``): ``draw(stream,
+    root)`` logs the entities under ``root``. With params ``record`` off the .rrd is written
+    empty, so that DVC still finds the declared output."""
+    if not run.rrd:
+        return
+    start = time.perf_counter()
+    if not run.enabled:
+        atomic_write(run.rrd, lambda stream: None)
+        return
+    root = f"/{run.recording_id}"
+    with rerun_recording(run.rrd, recording_id=run.recording_id) as stream:
+        send_blueprint(stream, root)
+        draw(stream, root)
+    run.record_seconds += time.perf_counter() - start
 
 
 def record_chain(rrd_path, mcap_path, artefacts, summary_dict, *, name, hands, settings=None):

@@ -73,7 +73,7 @@ def metrics(trials, table):
     :func:`results`' ``table``)."""
     def rates(frame):
         closed = frame.outcome == "force_closure"
-        return {"force_closure_rate": round(float(closed.mean()), 4) if len(frame) else None,
+        return {"force_closure_rate": round(float(closed.mean()), 4) if len(frame) else float("nan"),
                 "trials": int(len(frame))}
 
     out = {planner: rates(trials[trials.planner == planner]) for planner in ("mat", "baseline")}
@@ -175,7 +175,7 @@ def markdown(table, metrics_dict, timings, *, figures=(), settings=""):
     empty = table[table.mat_trials == 0]
 
     def rate(value):
-        return "-" if value is None else f"{100 * value:.1f} %"
+        return "-" if np.isnan(value) else f"{100 * value:.1f} %"
 
     parts = [
         "# Grasp planning on the grid of medial spheres: results", "", settings, "",

@@ -43,6 +43,7 @@ from .kinematics import base_poses, hand_model, link_poses
 from .mesh_query import ObjectMesh
 from .proximity import collides, measure
 from .quality import epsilon_quality
+from .tol import tol
 
 OUTCOMES = ("force_closure", "no_force_closure", "no_contact", "collision", "step_cap", "error")
 STOPS = ("contact", "limit", "step_cap", "none")
@@ -161,7 +162,7 @@ class GraspEngine:
             approach = approach / np.linalg.norm(approach, axis=1, keepdims=True)
             side = np.linalg.norm(np.cross(approach, orient), axis=1)
         valid = np.isfinite(grasp).all(axis=1) & np.isfinite(approach).all(axis=1) & np.isfinite(orient).all(axis=1) \
-            & (side > 1e-6)
+            & (side > tol.parallel)
         for number in np.flatnonzero(~valid):
             results[number] = TrialResult("error", message="candidate has a non-finite or zero P_d, or P_o along P_d")
         rows = np.flatnonzero(valid)

@@ -36,6 +36,7 @@ import scipy.sparse
 from .arrays import group_rows
 from .artefacts import _Artefact, content_key
 from .errors import BadParamsError
+from .tol import tol
 
 CLASSES = ("axis", "rim", "interior", "isolated", "pair")
 AXIS, RIM, INTERIOR, ISOLATED, PAIR = range(len(CLASSES))
@@ -224,7 +225,7 @@ def classify(sphere_grid, *, min_object_angle_deg=120.0, min_diameter_m=0.0, max
     class_id = np.full(len(selected), INTERIOR)
     class_id[rho < rho_plane] = RIM
     class_id[rho <= rho_axis] = AXIS
-    class_id[(counts == 2) | (eigenvalues[:, 1] <= 1e-12 * eigenvalues[:, 0])] = PAIR
+    class_id[(counts == 2) | (eigenvalues[:, 1] <= tol.pair_spread * eigenvalues[:, 0])] = PAIR
     spread = np.sqrt(eigenvalues[:, 0])
     class_id[(counts == 1) | (spread < isolated_spread * radii[selected])] = ISOLATED
     return Symmetry(sphere_index=selected, class_id=class_id, rho=rho, eigenvalues=eigenvalues,

@@ -125,7 +125,7 @@ def default_workers(workers):
     return workers if workers > 0 else len(os.sched_getaffinity(0))
 
 
-def simulate(surface, candidates, hands, *, spheres_per_object=200, baseline_trials=-1, seed=0,
+def simulate(surface, candidates, hands, *, spheres_per_object, baseline_trials, seed=0,
              workers=1, settings=None, progress=None):
     """Trials of the selected MAT candidates and the baseline for every hand.
 
@@ -205,12 +205,13 @@ def _tables(blocks):
 
 def summarise(trials):
     """``trials``, ``force_closure_rate``, ``mean_epsilon`` (over force-closure trials) and
-    ``outcomes`` counts of a trials table (or a slice of it)."""
+    ``outcomes`` counts of a trials table (or a slice of it). A rate or mean of no trials is NaN
+    (null in JSON), never 0."""
     closed = trials.outcome == "force_closure"
     return {
         "trials": int(len(trials)),
-        "force_closure_rate": float(closed.mean()) if len(trials) else 0.0,
-        "mean_epsilon": float(trials.epsilon[closed].mean()) if closed.any() else 0.0,
+        "force_closure_rate": float(closed.mean()) if len(trials) else float("nan"),
+        "mean_epsilon": float(trials.epsilon[closed].mean()) if closed.any() else float("nan"),
         "outcomes": {outcome: int((trials.outcome == outcome).sum()) for outcome in OUTCOMES},
     }
 

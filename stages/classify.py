@@ -11,7 +11,7 @@ import numpy as np
 
 from pipeline.artefacts import SphereGrid, SurfaceSamples
 from pipeline.cli import one_line_errors, params, stage_args, stage_run
-from pipeline.recording import log_spheres, log_surface, log_symmetry
+from pipeline.recording import log_spheres, log_surface, log_symmetry, record_stage
 from pipeline.symmetry import CLASSES, classify
 
 
@@ -35,7 +35,7 @@ def main(argv=None):
             log_spheres(stream, root, grid)  # the grid holds every medial sphere of the mat stage
             log_symmetry(stream, root, symmetry)
 
-        run.record(draw)
+        record_stage(run, draw)
     print(f"classify {args.out}: {len(symmetry)} spheres, "
           + ", ".join(f"{name} {count}" for name, count in counts.items()))
 

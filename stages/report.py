@@ -21,7 +21,7 @@ def run_dir(data, name, scale, hand=None):
 @one_line_errors
 def main(argv=None):
     from pipeline import report
-    from pipeline.artefacts import atomic_write, read_table, write_table
+    from pipeline.artefacts import atomic_write, json_bytes, read_table, write_table
     from pipeline.errors import ArtefactError
 
     args = stage_args(__doc__, "data", "out", argv=argv)
@@ -50,7 +50,7 @@ def main(argv=None):
         for planner, frame in force_closure.items():
             atomic_write(out / "plots" / f"force_closure_{planner}.csv", lambda s, f=frame: f.to_csv(s, index=False))
         atomic_write(out / "plots" / "epsilon.csv", lambda stream: epsilon.to_csv(stream, index=False))
-        atomic_write(out / "metrics.json", lambda stream: stream.write(json.dumps(metrics, indent=2).encode()))
+        atomic_write(out / "metrics.json", lambda stream: stream.write(json_bytes(metrics, indent=2)))
         figures = write_figures(args.data, out, config, trials)
         settings = (f"Protocol: {config.simulate.spheres_per_object} random spheres of the reduced set per object, "
                     f"scale and hand, all their candidates tried, and as many surface-normal baseline trials; "
@@ -62,8 +62,8 @@ def main(argv=None):
         run.outputs += [out / name for name in ("trials.parquet", "metrics.json", "report.md")]
         run.outputs += sorted((out / "plots").glob("*.csv")) + [out / path for _, path in figures]
     print(f"report {out / 'report.md'}: {len(trials)} trials in {len(runs)} runs; MAT force closure "
-          f"{100 * (metrics['mat']['force_closure_rate'] or 0):.1f} % vs baseline "
-          f"{100 * (metrics['baseline']['force_closure_rate'] or 0):.1f} %; MAT above the baseline in "
+          f"{100 * metrics['mat']['force_closure_rate']:.1f} % vs baseline "
+          f"{100 * metrics['baseline']['force_closure_rate']:.1f} %; MAT above the baseline in "
           f"{metrics['runs_mat_above_baseline']} of {metrics['runs_compared']} runs")
 
 

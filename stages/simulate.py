@@ -15,7 +15,7 @@ def main(argv=None):
     # imported here: trial workers are spawned and re-import this module, and need none of it
     from pipeline.artefacts import SurfaceSamples, read_table, write_table
     from pipeline.hands import get_hand
-    from pipeline.recording import log_candidates, log_trials
+    from pipeline.recording import log_candidates, log_trials, record_stage
     from pipeline.trials import default_workers, simulate, summary
 
     args = stage_args(__doc__, "surface", "candidates", "hand", "trials", "contacts", argv=argv)
@@ -45,7 +45,7 @@ def main(argv=None):
             log_candidates(stream, root, candidates)
             log_trials(stream, root, surface, hand, trials, contacts, settings=config.simulate.world_settings())
 
-        run.record(draw)
+        record_stage(run, draw)
     print(f"simulate {args.trials}: {result['trials']} MAT trials, force closure "
           f"{result['force_closure_rate']:.1%} (baseline {result['baseline']['force_closure_rate']:.1%} "
           f"of {result['baseline']['trials']})")

@@ -5,7 +5,7 @@ import functools
 import numpy as np
 import pytest
 
-from pipeline.params import Params, SampleParams
+from pipeline.params import Params, SampleParams, defaults
 from pipeline.plan import run_chain
 
 SHAPES = {
@@ -28,6 +28,19 @@ def chain(name, count=20000, method="shrinking_ball"):
     params = Params(sample=SampleParams(count=count), medial_axis=MedialAxisParams(method=method))
     artefacts, _ = run_chain(source, params, shape=shape, seed=7)
     return artefacts
+
+
+def complete_params(overrides=None):
+    """A complete params dict (every key is required): the defaults with ``overrides`` merged into
+    their sections; figures only of objects that ``overrides`` names."""
+    params = defaults()
+    for key, value in (overrides or {}).items():
+        merge = isinstance(value, dict) and isinstance(params.get(key), dict) and key != "objects"
+        params[key] = {**params[key], **value} if merge else value
+    if "figure_objects" not in (overrides or {}).get("report", {}):
+        params["report"]["figure_objects"] = [name for name in params["report"]["figure_objects"]
+                                              if name in params["objects"]]
+    return params
 
 
 @pytest.fixture

@@ -9,13 +9,15 @@ import numpy as np
 import pytest
 import trimesh
 import yaml
+from conftest import complete_params
 
 REPO = Path(__file__).resolve().parents[1]
 
 
-def run_sample(tmp_path, spec, extra=None):
-    params = {"objects": {"thing": spec}, "sample": {"count": 2000}}
-    params.update(extra or {})
+def run_sample(tmp_path, spec, extra=None, missing=()):
+    params = complete_params({"objects": {"thing": spec}, "sample": {"count": 2000}, **(extra or {})})
+    for section, key in missing:
+        del (params[section] if key else params)[key or section]
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
     result = subprocess.run([sys.executable, "-m", "stages.sample", "thing", "1.0", "out/surface.npz"], cwd=tmp_path,
                             capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(REPO)})
@@ -125,9 +127,15 @@ def test_two_overlapping_bodies_are_united(tmp_path):
     ({"simulate": {"cone_edges": 2}}, "simulate.cone_edges must be >= 3"),
     ({"simulate": {"baseline_trials": -2}}, "simulate.baseline_trials must be -1, 0 or a count"),
     ({"candidates": {"hands": ["shadow"]}}, "candidates.hands must list built-in hands"),
+    ({"report": {"figure_objects": ["mug"]}}, "report.figure_objects names 'mug', which is not under objects"),
+    ({"missing": [("mat", "tau")]}, "mat: missing key 'tau'"),
+    ({"missing": [("classify", None)]}, "missing section 'classify'"),
+    ({"missing": [("seed", None)]}, "missing section 'seed'"),
 ])
 def test_broken_params_give_one_line(extra, expected, tmp_path):
-    result, out = run_sample(tmp_path, {"source": "primitive:box", "extents": [0.1, 0.06, 0.02]}, extra)
+    extra = dict(extra)
+    result, out = run_sample(tmp_path, {"source": "primitive:box", "extents": [0.1, 0.06, 0.02]}, extra,
+                             missing=extra.pop("missing", ()))
     assert result.returncode == 2
     assert result.stderr.count("\n") == 1 and expected in result.stderr and "params.yaml" in result.stderr
     assert not out.exists()

@@ -13,6 +13,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 import yaml
+from conftest import complete_params
 
 from pipeline.batch import find_meshes, plan_object, read_results, run_batch
 from pipeline.errors import BadInputError
@@ -22,7 +23,7 @@ from pipeline.plan import run_chain
 REPO = Path(__file__).resolve().parents[1]
 HANDS = ["barrett"]
 SCALE = 0.015  # the scale of pybullet's random_urdfs, as their URDFs give it
-PARAMS = {"seed": 0, "sample": {"count": 2000}, "simulate": {"spheres_per_object": 2, "baseline_trials": 2}}
+PARAMS = complete_params({"seed": 0, "sample": {"count": 2000}, "simulate": {"spheres_per_object": 2, "baseline_trials": 2}})
 
 pytestmark = pytest.mark.slow
 

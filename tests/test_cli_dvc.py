@@ -11,8 +11,10 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from conftest import complete_params
 from test_recording import instances, rows_of
 
+from pipeline import dag
 from pipeline.artefacts import MedialSpheres
 from pipeline.logbook import file_digest, read_log
 from pipeline.symmetry import Symmetry
@@ -27,7 +29,7 @@ def run(args, cwd):
 
 @pytest.mark.slow
 def test_plan_writes_every_artefact_and_summary(tmp_path):
-    (tmp_path / "params.yaml").write_text(yaml.safe_dump({"sample": {"count": 3000}}))
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(complete_params({"sample": {"count": 3000}})))
     plan = [sys.executable, "-m", "pipeline", "plan", "primitive:box", "--seed", "3", "--params", "params.yaml",
             "--spheres", "3", "--baseline", "4", "--workers", "1"]
     result = run(plan + ["--out", "out"], tmp_path)
@@ -169,6 +171,28 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     second = run(dvc + ["repro"], tmp_path)
     assert second.returncode == 0 and not ran_stages(second)
 
+    # every stage ran only code among its deps (its log names the pipeline modules loaded)
+    for path in logs.rglob("*.mcap"):
+        loaded = dict(read_log(path))["/modules"]["modules"]
+        files = {f"pipeline/{name.split('.')[1]}.py" if "." in name else "pipeline/__init__.py" for name in loaded}
+        assert "pipeline/params.py" in files and files <= set(dag.code_deps(path.stem)), (path, files)
+
+    # editing a module makes DVC rerun exactly the stages that import it
+    quality = tmp_path / "pipeline" / "quality.py"
+    original = quality.read_text()
+    quality.write_text(original + "\n# edited\n")
+    status = run(dvc + ["status", "--json"], tmp_path)
+    stale = {key.split(":")[-1] for key in json.loads(status.stdout)}
+    quality.write_text(original)
+    items = {entry.name: [f"{name}-{scale}" + (f"-{hand}" if entry.per_hand else "")
+                          for name in ("box", "capsule") for scale in (1.0, 0.5)
+                          for hand in (("armar3", "barrett") if entry.per_hand else ("",))] for entry in dag.STAGES}
+    expected = {f"{entry.name}@{item}" for entry in dag.STAGES if "pipeline/quality.py" in dag.code_deps(entry.name)
+                for item in items[entry.name]} | {"report"}
+    assert {"simulate@box-1.0-armar3", "classify@capsule-0.5"} <= stale == expected
+    assert not any(key.startswith(("sample@", "mat@", "candidates@")) for key in stale)
+    assert not json.loads(run(dvc + ["status", "--json"], tmp_path).stdout)
+
     # a parameter sweep with dvc exp: only what the parameter feeds reruns
     assert run(git + ["add", "-A"], tmp_path).returncode == 0
     assert run(git + ["commit", "-qm", "run"], tmp_path).returncode == 0
@@ -207,7 +231,7 @@ def test_hands_cli_exports_a_hand_that_plan_accepts_and_renders_pictures(tmp_pat
     exported = run([sys.executable, "-m", "pipeline", "hands", "--export", "parallel_jaw", "myhand"], tmp_path)
     assert exported.returncode == 0, exported.stderr
     assert {path.name for path in (tmp_path / "myhand").iterdir()} == {"parallel_jaw.urdf", "parallel_jaw.yaml"}
-    (tmp_path / "params.yaml").write_text(yaml.safe_dump({"sample": {"count": 3000}}))
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(complete_params({"sample": {"count": 3000}})))
     planned = run([sys.executable, "-m", "pipeline", "plan", "primitive:box", "--hand", "myhand/parallel_jaw.yaml",
                    "--params", "params.yaml", "--spheres", "2", "--baseline", "3", "--workers", "1", "--out", "out"],
                   tmp_path)

@@ -154,6 +154,19 @@ def test_brief_formula_at_its_own_parameters():
     assert quality.epsilon == pytest.approx(0.219866306016, abs=1e-11)
 
 
+def test_tolerances_are_overridable_where_used(monkeypatch):
+    from pipeline.tol import tol
+
+    points, normals = antipodal()
+    assert epsilon_quality(points, normals, mu=0.5, torque_scale=A, torsional_friction=0.005).force_closure
+    # its wrenches' smallest singular value is 0.11 x the largest (0.5 / 4.47): a rank tolerance
+    # of 0.2 calls them flat, one of 0.1 does not
+    monkeypatch.setattr(tol, "rank", 0.1)
+    assert epsilon_quality(points, normals, mu=0.5, torque_scale=A, torsional_friction=0.005).force_closure
+    monkeypatch.setattr(tol, "rank", 0.2)
+    assert epsilon_quality(points, normals, mu=0.5, torque_scale=A, torsional_friction=0.005) == NONE
+
+
 def test_antipodal_soft_fingers_rotation_invariant(rng):
     """The two cones' octagons lie in orthogonal planes, so their spin cannot change epsilon."""
     points, normals = antipodal()

@@ -7,6 +7,7 @@ import pyarrow as pa
 import pytest
 import yaml
 from mcap.reader import make_reader
+from conftest import complete_params
 from rerun.chunk import RrdReader
 
 from pipeline.hands import get_hand
@@ -122,7 +123,7 @@ def run_classify_stage(folder, monkeypatch, *, record, grid="sphere_grid.npz"):
     from stages import classify
 
     monkeypatch.chdir(folder)
-    (folder / "params.yaml").write_text(yaml.safe_dump({"record": record, "classify": {"search_radius": 0.05}}))
+    (folder / "params.yaml").write_text(yaml.safe_dump(complete_params({"record": record, "classify": {"search_radius": 0.05}})))
     try:
         classify.main([grid, "surface.npz", "symmetry.npz", "--timing", "timing.json", "--log", "logs/classify.mcap",
                        "--rrd", "logs/object.rrd", "--recording-id", "capsule-1.0"])

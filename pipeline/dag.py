@@ -1,0 +1,174 @@
+"""The DAG's stages in one table, and the DVC stage files written from it.
+
+Each :class:`Stage` names its artefacts, the params DVC tracks for it and its module in
+``stages/``; its code deps are that module's ``pipeline`` imports, followed transitively (every
+``import`` statement, function-level ones included), so that editing any module a stage can run
+reruns the stage. ``python -m pipeline.dag`` rewrites ``dag/<stage>/dvc.yaml`` from this table;
+``python -m pipeline.dag --check`` only lists the files that differ, and fails if any does.
+"""
+
+import ast
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import PipelineError
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: file of each artefact; those of :data:`PER_HAND` lie in the run's ``<hand>/`` folder
+ARTEFACTS = {"surface": "surface.npz", "medial_axis": "medial_axis.npz", "spheres": "spheres.npz",
+             "sphere_grid": "sphere_grid.npz", "symmetry": "symmetry.npz", "candidates": "candidates.parquet",
+             "trials": "trials.parquet", "contacts": "contacts.parquet"}
+PER_HAND = ("candidates", "trials", "contacts")
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One DAG stage: ``python -m stages.<name> INPUTS... ARGS... OUTPUTS...``, run per object and
+    scale (and hand when ``per_hand``); ``args`` are matrix items (``object``, ``scale``,
+    ``hand``); ``params`` the params.yaml keys DVC tracks; ``recording`` the .rrd it writes."""
+
+    name: str
+    inputs: tuple
+    outputs: tuple
+    params: tuple
+    args: tuple = ()
+    per_hand: bool = False
+    recording: str = ""
+
+
+STAGES = (
+    Stage("sample", (), ("surface",), ("seed", "sample", "objects.${item.object}"), args=("object", "scale")),
+    Stage("medial_axis", ("surface",), ("medial_axis",), ("medial_axis",)),
+    Stage("mat", ("surface", "medial_axis"), ("spheres",), ("mat",)),
+    Stage("sphere_grid", ("spheres",), ("sphere_grid",), ("sphere_grid",)),
+    Stage("classify", ("sphere_grid", "surface"), ("symmetry",), ("record", "classify"), recording="object.rrd"),
+    Stage("candidates", ("symmetry",), ("candidates",),
+          ("candidates.approach_directions", "candidates.flipped_candidates"), args=("hand",), per_hand=True),
+    Stage("simulate", ("surface", "candidates"), ("trials", "contacts"), ("record", "seed", "simulate"),
+          args=("hand",), per_hand=True, recording="grasps.rrd"),
+)
+#: the report reads every run's artefacts under ``data/`` (it is not per run)
+REPORT = Stage("report", (), (), ("seed", "objects", "scales", "candidates.hands", "simulate.spheres_per_object",
+                                 "simulate.mu", "simulate.cone_edges", "report"))
+
+
+def stage(name):
+    """The :class:`Stage` named ``name``."""
+    for entry in STAGES + (REPORT,):
+        if entry.name == name:
+            return entry
+    raise PipelineError(f"no stage named {name!r} (stages: {', '.join(s.name for s in STAGES + (REPORT,))})")
+
+
+def _imported(path):
+    """``pipeline`` modules (names) that the source file ``path`` imports anywhere in it."""
+    tree = ast.parse(Path(path).read_text(), filename=str(path))
+    inside = Path(path).parent.name == "pipeline"
+    found = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found.update(alias.name.split(".")[1] for alias in node.names if alias.name.startswith("pipeline."))
+        elif isinstance(node, ast.ImportFrom):
+            if node.level == 1 and inside:
+                module = node.module or ""
+            elif node.level == 0 and (node.module or "").split(".")[0] == "pipeline":
+                module = node.module.removeprefix("pipeline").lstrip(".")
+            else:
+                continue
+            if module:
+                found.add(module.split(".")[0])
+            else:  # from pipeline import sphere_grid
+                found.update(alias.name for alias in node.names if (ROOT / "pipeline" / f"{alias.name}.py").is_file())
+    return found
+
+
+@functools.cache
+def code_deps(name):
+    """Repository-relative source files stage ``name`` can run: ``stages/<name>.py``, the
+    ``pipeline`` package's ``__init__.py`` and every ``pipeline`` module it imports, transitively."""
+    seen, todo = set(), sorted(_imported(ROOT / "stages" / f"{name}.py"))
+    while todo:
+        module = todo.pop()
+        if module not in seen:
+            seen.add(module)
+            todo += sorted(_imported(ROOT / "pipeline" / f"{module}.py") - seen)
+    return (f"stages/{name}.py", "pipeline/__init__.py") + tuple(f"pipeline/{module}.py" for module in sorted(seen))
+
+
+def _path(artefact):
+    run = "data/${item.object}/${item.scale}"
+    return f"{run}/${{item.hand}}/{ARTEFACTS[artefact]}" if artefact in PER_HAND else f"{run}/{ARTEFACTS[artefact]}"
+
+
+def _run_folder(entry, root):
+    return f"{root}/${{item.object}}/${{item.scale}}" + ("/${item.hand}" if entry.per_hand else "")
+
+
+def dvc_file(name):
+    """The text of ``dag/<name>/dvc.yaml``."""
+    entry = stage(name)
+    lines = [f"# Stage `{name}` of the DAG, written by `python -m pipeline.dag` from pipeline/dag.py: edit the",
+             "# table there, not this file. One file per stage, so that each keeps its own small dvc.lock (DVC",
+             "# rewrites a file's whole lock after every stage it runs). Paths are relative to the repository root.",
+             "vars:", "  - ../../params.yaml", "stages:", f"  {name}:"]
+    if entry is REPORT:
+        lines += ["    wdir: ../..", "    cmd: python -m stages.report data report --log logs/report.mcap"]
+        outs = ["report/report.md", "report/trials.parquet", "report/figures", "report/plots", "logs/report.mcap"]
+        deps = list(code_deps(name)) + ["data"]
+    else:
+        lines += ["    matrix:", "      object: ${objects}", "      scale: ${scales}"]
+        if entry.per_hand:
+            lines.append("      hand: ${candidates.hands}")
+        logs, data = _run_folder(entry, "logs"), _run_folder(entry, "data")
+        argv = [_path(item) for item in entry.inputs] + [f"${{item.{arg}}}" for arg in entry.args] \
+            + [_path(item) for item in entry.outputs] + [f"--timing {data}/timing/{name}.json", f"--log {logs}/{name}.mcap"]
+        outs = [_path(item) for item in entry.outputs] + [f"{data}/timing/{name}.json", f"{logs}/{name}.mcap"]
+        if entry.recording:
+            run_logs = "logs/${item.object}/${item.scale}" + ("/${item.hand}" if entry.per_hand else "")
+            argv.append(f"--rrd {run_logs}/{entry.recording} --recording-id ${{item.object}}-${{item.scale}}")
+            outs.append(f"{run_logs}/{entry.recording}")
+        lines += ["    wdir: ../..", "    cmd: >-", f"      python -m stages.{name}"] + [f"      {arg}" for arg in argv]
+        deps = list(code_deps(name)) + [_path(item) for item in entry.inputs]
+    lines += ["    deps:"] + [f"      - {path}" for path in deps]
+    lines += ["    params:"] + [f"      - {key}" for key in entry.params]
+    lines += ["    outs:"] + [f"      - {path}" for path in outs]
+    if entry is REPORT:
+        lines += ["    metrics:", "      - report/metrics.json"]
+    return "\n".join(lines) + "\n"
+
+
+def write_dvc_files(root=ROOT, *, check=False):
+    """Write ``dag/<stage>/dvc.yaml`` of every stage under ``root``; with ``check``, write nothing
+    and return the paths whose committed text differs (missing files included)."""
+    stale = []
+    for entry in STAGES + (REPORT,):
+        path = Path(root) / "dag" / entry.name / "dvc.yaml"
+        text = dvc_file(entry.name)
+        if path.is_file() and path.read_text() == text:
+            continue
+        stale.append(path)
+        if not check:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text)
+    return stale
+
+
+def main(argv=None):
+    import argparse
+    import sys
+
+    parser = argparse.ArgumentParser(prog="python -m pipeline.dag", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--check", action="store_true", help="write nothing; exit 1 if a file is out of date")
+    args = parser.parse_args(argv)
+    stale = write_dvc_files(check=args.check)
+    for path in stale:
+        print(f"{'out of date' if args.check else 'wrote'}: {path.relative_to(ROOT)}")
+    if args.check and stale:
+        print("run `python -m pipeline.dag` to rewrite them", file=sys.stderr)
+        raise SystemExit(1)
+
+
+if __name__ == "__main__":
+    main()

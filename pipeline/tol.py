@@ -1,0 +1,44 @@
+"""The library's numerical tolerances, in one place (after trimesh's ``tol``).
+
+They decide rounding and degeneracy, not the method, so they are not params: each is an
+attribute of :data:`tol`, read when it is used, so that ``pipeline.tol.tol.rank = 1e-8``
+overrides it for the process (trial worker processes start from these values). Lengths are
+metres; ``*_decimals`` are decimal places of rounding before points or planes are compared.
+"""
+
+from dataclasses import dataclass
+
+
+@dataclass
+class Tolerances:
+    """See the module docstring; each field says where it is used."""
+
+    rank: float = 1e-9
+    """Wrenches whose smallest singular value is below this x the largest span less than 6D:
+    epsilon 0 (:mod:`pipeline.quality`)."""
+    hull_inside: float = 1e-12
+    """An origin nearer than this to a hull facet counts as on the hull: epsilon 0 (quality)."""
+    hull_beyond: float = 1e-10
+    """A wrench must lie this far past a facet's plane to count as beyond it (quality's grown hull)."""
+    wrench_decimals: int = 12
+    """Wrenches equal at this rounding are one (symmetric contacts only slow Qhull down)."""
+    edge_tie_m: float = 1e-9
+    """Link edges this much farther than the nearest still count as nearest, so that the contact
+    normal at a link corner does not hang on rounding (:mod:`pipeline.proximity`)."""
+    overlap_m: float = 1e-6
+    """A mesh vertex deeper than this inside a link is a collision (proximity)."""
+    point_decimals: int = 12
+    """Link surface points, touching pairs and contact normals equal at this rounding are one
+    (:mod:`pipeline.kinematics`, :mod:`pipeline.contacts`)."""
+    plane_decimals: int = 9
+    """Convex-piece face planes equal at this rounding are one face (kinematics)."""
+    contact_merge_m: float = 1e-4
+    """Touching points of one region closer than this are one contact (contacts)."""
+    parallel: float = 1e-6
+    """|P_d x P_o| below this: the candidate has no wrap direction (an ``error`` trial)."""
+    pair_spread: float = 1e-12
+    """A neighbourhood whose second PCA eigenvalue is below this x the first lies on a line: a
+    ``pair`` (:mod:`pipeline.symmetry`)."""
+
+
+tol = Tolerances()

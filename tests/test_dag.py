@@ -1,0 +1,57 @@
+"""The stage table (pipeline.dag): the committed DVC files are written from it, and each stage's
+code deps are the modules it imports."""
+
+import pytest
+
+from pipeline import dag
+from pipeline.errors import PipelineError
+
+
+def test_committed_dvc_files_are_written_from_the_table():
+    # a stage that gains an import, or a table edit, leaves its dag/<stage>/dvc.yaml stale
+    assert dag.write_dvc_files(check=True) == []
+
+
+def test_import_walk_finds_every_form(tmp_path, monkeypatch):
+    (tmp_path / "pipeline").mkdir()
+    for name in ("alpha", "beta", "gamma", "delta", "epsilon"):
+        (tmp_path / "pipeline" / f"{name}.py").write_text("")
+    (tmp_path / "pipeline" / "alpha.py").write_text("from .beta import thing\n")
+    stage = tmp_path / "stages" / "demo.py"
+    stage.parent.mkdir()
+    stage.write_text("import os\nimport pipeline.gamma\nfrom pipeline import delta, not_a_module\n"
+                     "from pipeline.alpha import x\n\ndef main():\n    from pipeline.epsilon import y\n")
+    monkeypatch.setattr(dag, "ROOT", tmp_path)
+    dag.code_deps.cache_clear()
+    try:
+        assert dag._imported(stage) == {"gamma", "delta", "alpha", "epsilon"}
+        assert dag._imported(tmp_path / "pipeline" / "alpha.py") == {"beta"}
+        assert dag.code_deps("demo") == ("stages/demo.py", "pipeline/__init__.py", "pipeline/alpha.py",
+                                         "pipeline/beta.py", "pipeline/delta.py", "pipeline/epsilon.py",
+                                         "pipeline/gamma.py")
+    finally:
+        dag.code_deps.cache_clear()
+
+
+def test_code_deps_follow_the_imports_and_stay_tight():
+    simulate = set(dag.code_deps("simulate"))
+    # the trial engine's modules reach simulate only through pipeline.trials -> simulation
+    assert {"pipeline/trials.py", "pipeline/simulation.py", "pipeline/proximity.py", "pipeline/mesh_query.py",
+            "pipeline/contacts.py", "pipeline/quality.py", "pipeline/kinematics.py", "pipeline/urdf.py",
+            "pipeline/params.py", "pipeline/cli.py", "pipeline/artefacts.py"} <= simulate
+    # the geometry stages do not rerun when the trial engine changes
+    for name in ("sample", "medial_axis", "mat", "sphere_grid", "candidates"):
+        assert not {"pipeline/simulation.py", "pipeline/quality.py", "pipeline/recording.py"} & set(dag.code_deps(name))
+    assert "pipeline/medial_axis.py" in dag.code_deps("medial_axis")
+    assert {"pipeline/mat.py", "pipeline/cell_grid.py"} <= set(dag.code_deps("mat"))
+    assert "pipeline/figures.py" in dag.code_deps("report") and "pipeline/figures.py" not in simulate
+    with pytest.raises(PipelineError, match="no stage named 'sampel'"):
+        dag.stage("sampel")
+
+
+def test_table_chains_every_input_to_an_earlier_output():
+    made = set()
+    for entry in dag.STAGES:
+        assert set(entry.inputs) <= made, entry.name
+        made |= set(entry.outputs)
+    assert made == set(dag.ARTEFACTS)
