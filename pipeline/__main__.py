@@ -1,68 +1,127 @@
-"""Command line: ``python -m pipeline {plan,batch,bench,hands,objects} ...`` (``--help`` on each)."""
+"""Command line: ``medial-grasp {plan,batch,bench,hands,objects} ...`` (also ``python -m pipeline``;
+``--help`` on each)."""
 
 import argparse
 import json
 import sys
+from pathlib import Path
 
 from .cli import PARAMS_FILE, one_line_errors, progress_bar
 from .params import Params, load_params
 
+PARAMS_HELP = f"params file (default: {PARAMS_FILE} in the current folder if present, else built-in defaults)"
+
+
+def _prog():
+    """The name the user typed: the console script's, else ``python -m pipeline``."""
+    return "medial-grasp" if Path(sys.argv[0]).name == "medial-grasp" else "python -m pipeline"
+
+
+def _subcommand(commands, name, *, help, description, examples):
+    """A subcommand whose --help shows ``description`` and its example command lines as written."""
+    return commands.add_parser(name, help=help, description=description,
+                               epilog="example:\n" + "\n".join(f"  {line}" for line in examples),
+                               formatter_class=argparse.RawDescriptionHelpFormatter)
+
 
 @one_line_errors
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m pipeline", description=__doc__)
+    from .hands import HANDS
+
+    prog = _prog()
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__)
     commands = parser.add_subparsers(dest="command", required=True)
-    plan = commands.add_parser("plan", help="run every stage on one mesh, outside DVC")
+    plan = _subcommand(
+        commands, "plan", help="run every stage on one mesh, outside DVC",
+        description="Run every stage (sample ... candidates, then the grasp trials) on one object, outside DVC,\n"
+                    "and write each artefact and summary.json into --out. Params come from --params, else\n"
+                    f"{PARAMS_FILE} in the current folder if present, else the built-in defaults.",
+        examples=[f"{prog} plan primitive:mug --out out/mug --spheres 20",
+                  f"{prog} plan my_part.stl --scale 0.001 --hand barrett --no-simulate --out out/part"])
     plan.add_argument("mesh", help="mesh or point-cloud file, primitive:NAME or pybullet:RELPATH")
     plan.add_argument("--out", required=True, help="folder for the artefacts and summary.json")
-    plan.add_argument("--scale", type=float, default=1.0, help="factor on the coordinates (0.001 for mm)")
-    plan.add_argument("--seed", type=int, default=None, help="overrides params.yaml's seed")
+    plan.add_argument("--scale", type=float, default=1.0, help="factor on the coordinates (0.001 for mm; default: 1)")
+    plan.add_argument("--seed", type=int, default=None, help="overrides the params seed (default: params seed)")
     plan.add_argument("--hand", action="append", default=None,
                       help="built-in hand name or hand spec .yaml/.toml (repeatable; default: params candidates.hands)")
     plan.add_argument("--spheres", type=int, default=None,
-                      help="random spheres per hand whose candidates are simulated (default: params, 200)")
+                      help="random spheres per hand whose candidates are simulated "
+                           "(default: params simulate.spheres_per_object)")
     plan.add_argument("--baseline", type=int, default=None,
-                      help="surface-normal baseline trials per hand (default: as many as the MAT trials)")
-    plan.add_argument("--workers", type=int, default=None, help="trial processes (default: every core)")
+                      help="surface-normal baseline trials per hand (default: params simulate.baseline_trials; "
+                           "-1 = as many as the MAT trials)")
+    plan.add_argument("--workers", type=int, default=None,
+                      help="trial processes (default: params simulate.workers; 0 = every core)")
     plan.add_argument("--no-simulate", action="store_true", help="stop after the candidates")
     plan.add_argument("--record", action="store_true",
                       help="also write recording.rrd (open with `rerun`) and log.mcap into --out")
     plan.add_argument("--params", default=None,
-                      help=f"params file (default: {PARAMS_FILE} if present, else built-in defaults)")
-    batch = commands.add_parser("batch", help="run every stage on every mesh of a folder, on Ray (local or a cluster)")
-    batch.add_argument("folder", help="folder of meshes (searched recursively), or pybullet:DIR, e.g. pybullet:random_urdfs")
+                      help=PARAMS_HELP)
+    batch = _subcommand(
+        commands, "batch", help="run every stage on every mesh of a folder, on Ray (local or a cluster)",
+        description="Plan every mesh under a folder (searched recursively) as one Ray task each, on an embedded\n"
+                    "local Ray or a cluster, into OUT/objects/*.parquet and OUT/trials/*.parquet. Objects done\n"
+                    "before with the same inputs are skipped, so an interrupted batch resumes.",
+        examples=[f"{prog} batch pybullet:random_urdfs --scale 0.015 --hand barrett --out out/random --limit 10",
+                  f"{prog} batch meshes/ --hand armar3 --hand barrett --only 1,41,81 --out out/chosen"])
+    batch.add_argument("folder",
+                       help="folder of meshes (searched recursively), or pybullet:DIR, e.g. pybullet:random_urdfs")
     batch.add_argument("--hand", action="append", required=True, help="built-in hand name or spec file (repeatable)")
     batch.add_argument("--out", required=True, help="output folder: objects/*.parquet and trials/*.parquet")
+    batch.add_argument("--only", default=None, help="comma-separated file stems to plan (e.g. 000,007)")
+    batch.add_argument("--limit", type=int, default=None, help="plan only the first N meshes (natural order)")
     batch.add_argument("--address", default=None,
                        help="join this Ray cluster (host:port; default $RAY_ADDRESS, else an embedded local Ray)")
     batch.add_argument("--workers", type=int, default=None, help="CPUs of the embedded Ray (default: every core)")
-    batch.add_argument("--scale", type=float, default=1.0, help="factor on every mesh's coordinates "
-                                                                 "(0.015 for pybullet:random_urdfs, as their URDFs)")
-    batch.add_argument("--seed", type=int, default=None, help="overrides params.yaml's seed")
-    batch.add_argument("--spheres", type=int, default=None, help="random spheres per object and hand (default: params)")
+    batch.add_argument("--scale", type=float, default=1.0, help="factor on every mesh's coordinates (default: 1; "
+                                                                 "0.015 for pybullet:random_urdfs, as their URDFs)")
+    batch.add_argument("--seed", type=int, default=None, help="overrides the params seed (default: params seed)")
+    batch.add_argument("--spheres", type=int, default=None,
+                       help="random spheres per object and hand (default: params simulate.spheres_per_object)")
     batch.add_argument("--params", default=None,
-                       help=f"params file (default: {PARAMS_FILE} if present, else built-in defaults)")
-    bench = commands.add_parser("bench", help="benchmark medial_axis + mat (vs voronoi_poles), classify + candidates, "
-                                              "grasp trials and the cost of recording them")
+                       help=PARAMS_HELP)
+    bench = _subcommand(
+        commands, "bench", help="benchmark medial_axis + mat (vs voronoi_poles), classify + candidates, "
+                                "grasp trials and the cost of recording them",
+        description="Time medial_axis + mat (against voronoi_poles), classify + candidates, the grasp trials,\n"
+                    "the cost of recording them and a small batch; prints one table each.",
+        examples=[f"{prog} bench --only medial --sizes 20000 --repeats 1",
+                  f"{prog} bench --json bench.json"])
     bench.add_argument("--json", default=None, help="also write the figures to this JSON file")
-    bench.add_argument("--sizes", default="20000,100000,200000", help="surface sample counts, comma-separated")
-    bench.add_argument("--repeats", type=int, default=3, help="runs per case; the median is reported")
-    bench.add_argument("--trials", type=int, default=100, help="grasp trials per hand in the trial table")
+    bench.add_argument("--sizes", default="20000,100000,200000",
+                       help="surface sample counts, comma-separated (default: %(default)s)")
+    bench.add_argument("--repeats", type=int, default=3, help="runs per case; the median is reported (default: 3)")
+    bench.add_argument("--trials", type=int, default=100,
+                       help="grasp trials per hand in the trial table (default: 100)")
     bench.add_argument("--only", choices=("medial", "symmetry", "trials", "recording", "batch"), default=None,
-                       help="run one table")
-    hands = commands.add_parser("hands", help="render the built-in hands, or export one as URDF + spec")
+                       help="run one table (default: all)")
+    hands = _subcommand(
+        commands, "hands", help="render the built-in hands, or export one as URDF + spec",
+        description=f"Render the built-in hands, or export one as URDF + spec file.\n"
+                    f"built-in hands: {', '.join(HANDS)}",
+        examples=[f"{prog} hands --render pictures",
+                  f"{prog} hands --export parallel_jaw myhand   # then: plan ... --hand myhand/parallel_jaw.yaml"])
     hands.add_argument("--render", metavar="DIR", help="write DIR/<hand>.png, open and closed on an object")
     hands.add_argument("--export", nargs=2, metavar=("HAND", "DIR"),
                        help="write DIR/HAND.urdf and DIR/HAND.yaml (a spec --hand accepts)")
-    objects = commands.add_parser("objects", help="params.yaml objects entries for every mesh in a folder")
-    objects.add_argument("folder", help="folder of OBJ/STL/PLY/OFF/GLB meshes")
-    objects.add_argument("--scale", type=float, default=None, help="factor for every mesh (0.001 for mm)")
+    objects = _subcommand(
+        commands, "objects", help="params.yaml objects entries for every mesh in a folder",
+        description="List every mesh under a folder (searched recursively) as params.yaml objects entries, after\n"
+                    "the checks of the sample stage (closed surface, units, finite coordinates...): a mesh that\n"
+                    "fails them is skipped with a warning. Nested files are named by their path, parts joined\n"
+                    "with '-'. --write replaces the objects section of a params file and keeps\n"
+                    "report.figure_objects naming objects of it.",
+        examples=[f"{prog} objects meshes/ --scale 0.001 --write {PARAMS_FILE}   # then: dvc repro",
+                  f"{prog} objects benchmark/ --size 0.26 --only 1,41,81"])
+    objects.add_argument("folder", help="folder of OBJ/STL/PLY/OFF/GLB meshes (searched recursively)")
+    objects.add_argument("--scale", type=float, default=None, help="factor for every mesh (0.001 for mm; default: 1)")
     objects.add_argument("--size", type=float, default=None,
                          help="metres of each mesh's bounding-box diagonal, for unitless meshes")
     objects.add_argument("--only", default=None, help="comma-separated file stems to keep (e.g. 1,41,81)")
-    objects.add_argument("--prefix", default="", help="put before each file stem to name the object")
+    objects.add_argument("--prefix", default="", help="put before each object name")
     objects.add_argument("--write", metavar="PARAMS", default=None,
-                         help="replace the objects section of this params file (else print the entries)")
+                         help="replace the objects section of this params file (else print the entries); "
+                              "its sample section and scales set the checks")
     args = parser.parse_args(argv)
     if args.command == "objects":
         return _objects(args)
@@ -93,26 +152,159 @@ def _hands(args, parser):
 
 
 def _objects(args):
-    from pathlib import Path
-
     from .artefacts import atomic_write
-    from .catalogue import entry_lines, folder_entries, replace_objects
+    from .catalogue import entry_lines, replace_objects
+    from .errors import BadInputError, PipelineError
+    from .objects import mesh_files, object_name, select_meshes
 
-    entries = folder_entries(args.folder, prefix=args.prefix, scale=args.scale, size=args.size,
-                             only=args.only.split(",") if args.only else None)
+    if args.scale is not None and args.size is not None:
+        raise BadInputError("give --scale or --size, not both")
+    folder, files = mesh_files(args.folder)
+    named = select_meshes([(object_name(relative, args.prefix), path) for relative, path in files],
+                          folder=folder, only=args.only.split(",") if args.only else None)
+    first = {}
+    for name, path in named:
+        if name in first:  # two files would share data/<name>/ and their DVC stages
+            raise BadInputError(f"{first[name]} and {path} both give the object name {name!r}; rename one")
+        first[name] = path
+    params_path = args.write or (PARAMS_FILE if Path(PARAMS_FILE).is_file() else None)
+    sample, scales = _sample_checks(params_path)
+    entries = {}
+    for name, path in named:
+        try:
+            entries[name] = {"source": str(path), "scale": _checked_scale(path, args.scale, args.size, sample, scales)}
+        except PipelineError as err:  # one bad file in a folder should not stop the listing
+            print(f"warning: skipped {err}", file=sys.stderr)
+    if not entries:
+        raise BadInputError(f"{folder}: no mesh passed the sample stage's checks (see the warnings above)")
     if not args.write:
         print("\n".join(["objects:"] + [f"  {line}" for line in entry_lines(entries)]))
         return
     text = replace_objects(Path(args.write).read_text(), entries)
+    text, figures = _follow_figure_objects(text, list(entries), source=args.write)
     atomic_write(args.write, lambda stream: stream.write(text.encode()))
-    print(f"wrote {len(entries)} objects into {args.write}: run `dvc repro`")
+    print(f"wrote {len(entries)} objects into {args.write} (report.figure_objects: {', '.join(figures)}): "
+          "run `dvc repro`")
+
+
+def _sample_checks(path):
+    """``(SampleParams, scales)`` of the params file at ``path`` (None: the defaults): what the sample
+    stage checks a mesh with. Only these are read, so a file whose other sections no longer fit its
+    objects (figure_objects of an earlier listing) can still be rewritten."""
+    import yaml
+
+    from .errors import BadParamsError
+    from .params import SampleParams, section_from_mapping
+
+    if path is None:
+        return Params().sample, Params().scales
+    try:
+        raw = yaml.safe_load(Path(path).read_text()) or {}
+    except FileNotFoundError:
+        raise BadParamsError(f"{path}: file not found") from None
+    except yaml.YAMLError as err:
+        raise BadParamsError(f"{path}: not valid YAML ({str(err).replace(chr(10), ' ')})") from None
+    if not isinstance(raw, dict):
+        raise BadParamsError(f"{path}: must be a mapping of sections")
+    sample = section_from_mapping(SampleParams, raw.get("sample"), section="sample", source=str(path))
+    scales = raw.get("scales", [1.0])
+    if not (isinstance(scales, list) and scales and all(
+            isinstance(scale, (int, float)) and not isinstance(scale, bool) and scale > 0 for scale in scales)):
+        raise BadParamsError(f"{path}: scales must be a list of positive numbers, got {scales!r}")
+    return sample, [float(scale) for scale in scales]
+
+
+def _checked_scale(path, scale, size, sample, scales):
+    """The object scale of the mesh at ``path`` (``scale``, or the one giving a ``size`` m diagonal),
+    after the sample stage's checks at each of ``scales``; raises BadInputError naming the file."""
+    import dataclasses
+    import warnings
+
+    import numpy as np
+
+    from .errors import BadInputError
+    from .objects import RepairWarning, check_size, load_source
+    from .sampling import sample_object
+
+    factor = 1.0 if scale is None else float(scale)
+    if size is not None:
+        loaded = load_source(str(path))
+        points = np.asarray(loaded[1].vertices if loaded[0] == "mesh" else loaded[1])
+        if not (len(points) and np.isfinite(points).all()):
+            raise BadInputError(f"{path}: no points, or NaN or infinite coordinates")
+        diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
+        if not diagonal > 0:
+            raise BadInputError(f"{path}: all points coincide, no size to scale to --size {size:g}")
+        factor = float(size) / diagonal
+    factor = float(f"{factor:.6g}")  # as written into params.yaml
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RepairWarning)
+        # the stage's own load, repairs and checks; few samples, since only the checks matter here
+        surface = sample_object(str(path), scale=factor * scales[0], rng=np.random.default_rng(0),
+                                **{**dataclasses.asdict(sample), "count": 100})
+    for repair in caught:
+        print(f"warning: {repair.message}", file=sys.stderr)
+    coordinates = surface.vertices if len(surface.vertices) else surface.points
+    for other in scales[1:]:  # the stage runs the object at every params scale: the units check at each
+        try:
+            check_size(coordinates * (other / scales[0]), name=str(path), min_extent=sample.min_extent_m,
+                       max_extent=sample.max_extent_m)
+        except BadInputError as err:
+            raise BadInputError(f"{err} [at params scale {other:g}]") from None
+    return factor
+
+
+def _follow_figure_objects(text, names, *, source):
+    """``text`` (a params file) with ``report.figure_objects`` kept to the objects ``names``: the ones
+    it names that remain, else the first up to 3 of ``names``. Returns ``(text, figure_objects)``."""
+    import re
+
+    import yaml
+
+    from .errors import BadInputError
+    from .params import ReportParams
+
+    report = (yaml.safe_load(text) or {}).get("report") or {}
+    before = report.get("figure_objects", ReportParams().figure_objects) if isinstance(report, dict) else []
+    figures = [name for name in before if name in names] or names[:3]
+    if figures == before and "figure_objects" in report:
+        return text, figures
+    flow = "[" + ", ".join(name if yaml.safe_load(name) == name else json.dumps(name) for name in figures) + "]"
+    lines = text.splitlines(keepends=True)
+    section = next((number for number, line in enumerate(lines) if re.match(r"report:\s*(#.*)?$", line)), None)
+    if section is None:
+        text = text + ("" if text.endswith("\n") or not text else "\n") + f"\nreport:\n  figure_objects: {flow}\n"
+    else:
+        end = section + 1
+        while end < len(lines) and (lines[end].startswith((" ", "\t")) or not lines[end].strip()):
+            end += 1
+        key = next((number for number in range(section + 1, end)
+                    if re.match(r"\s+figure_objects:", lines[number])), None)
+        if key is None:
+            lines.insert(section + 1, f"  figure_objects: {flow}\n")
+        else:
+            indent, rest = re.match(r"(\s+figure_objects:)(.*)", lines[key].rstrip("\n")).groups()
+            comment = re.search(r"\s+#.*$", rest[rest.find("]") + 1:] if "[" in rest else rest)
+            lines[key] = f"{indent} {flow}{comment.group(0) if comment else ''}\n"
+            if "[" not in rest:  # a block list: drop its "- name" lines
+                after = key + 1
+                while after < end and re.match(r"\s+-\s", lines[after]):
+                    del lines[after]
+                    end -= 1
+        text = "".join(lines)
+    try:
+        written = (yaml.safe_load(text).get("report") or {}).get("figure_objects")
+    except yaml.YAMLError:  # e.g. a flow list over several lines, only partly replaced
+        written = None
+    if written != figures:
+        raise BadInputError(f"{source}: report.figure_objects cannot be rewritten to {figures} (edit it by hand)")
+    return text, figures
 
 
 def _command_params(args):
     """The params file of ``--params`` (or params.yaml here, else the defaults) with the
     command's ``--spheres`` / ``--baseline`` overrides."""
     import dataclasses
-    from pathlib import Path
 
     params_path = args.params or (PARAMS_FILE if Path(PARAMS_FILE).is_file() else None)
     params = load_params(params_path) if params_path else Params()
@@ -127,11 +319,13 @@ def _command_params(args):
 def _batch(args):
     from .batch import find_meshes, run_batch
     from .hands import get_hand
+    from .objects import select_meshes
 
     params = _command_params(args)
     for hand in args.hand:
         get_hand(hand)  # an unknown hand fails here, in one line, before Ray starts
-    meshes = find_meshes(args.folder)
+    meshes = select_meshes(find_meshes(args.folder), folder=args.folder,
+                           only=args.only.split(",") if args.only else None, limit=args.limit)
     print(f"batch: {len(meshes)} meshes from {args.folder} -> {args.out}", file=sys.stderr)
     counts = run_batch(meshes, args.out, hands=args.hand, params=params, scale=args.scale, seed=args.seed,
                        address=args.address, workers=args.workers,
@@ -144,18 +338,23 @@ def _batch(args):
 
 
 def _plan(args):
-    from pathlib import Path
+    import warnings
 
-    from .plan import run_chain, summary, write_plan
+    from .plan import run_chain, summary, warning_lines, write_plan
 
     params = _command_params(args)
     seed = params.seed if args.seed is None else args.seed
-    with progress_bar("simulate") as trial_progress:
-        artefacts, timings = run_chain(args.mesh, params, scale=args.scale, seed=seed, hands=args.hand,
+    hands = args.hand or list(params.candidates.hands)
+    with progress_bar("simulate") as trial_progress, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")  # each distinct warning once, as the DVC stages log them
+        artefacts, timings = run_chain(args.mesh, params, scale=args.scale, seed=seed, hands=hands,
                                        simulate=not args.no_simulate, workers=args.workers,
                                        progress=lambda line: print(line, file=sys.stderr),
                                        trial_progress=trial_progress)
-    result = summary(artefacts, timings, source=args.mesh, scale=args.scale, seed=seed)
+    result = summary(artefacts, timings, source=args.mesh, scale=args.scale, seed=seed, hands=hands,
+                     warnings=warning_lines(caught))
+    for line in result["warnings"]:
+        print(f"warning: {line}", file=sys.stderr)
     write_plan(args.out, artefacts, result)
     if args.record:
         from .hands import get_hand
@@ -163,8 +362,7 @@ def _plan(args):
 
         name = Path(args.mesh.split(":")[-1]).stem or "object"
         record_chain(Path(args.out) / "recording.rrd", Path(args.out) / "log.mcap", artefacts, result, name=name,
-                     hands=[get_hand(hand) for hand in (args.hand or params.candidates.hands)],
-                     settings=params.simulate.world_settings())
+                     hands=[get_hand(hand) for hand in hands], settings=params.simulate.world_settings())
     brief = {**result["counts"], "classes": result["classes"], "candidates": result["candidates"]}
     if "trials" in result:
         brief.update({key: result[key] for key in ("trials", "force_closure_rate", "mean_epsilon", "outcomes")})

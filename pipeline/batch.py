@@ -29,9 +29,8 @@ from pathlib import Path
 import pandas as pd
 
 from .artefacts import SCHEMA_VERSION, content_key, write_table
-from .catalogue import natural_key
 from .errors import BadInputError, PipelineError
-from .objects import MESH_SUFFIXES, pybullet_path, source_key
+from .objects import mesh_files, source_key
 
 SUMMARY_COLUMNS = {"object": str, "status": str, "reason": str, "key": str, "source": str, "samples": "Int64",
                    "medial_spheres": "Int64", "reduced_spheres": "Int64", "candidates": "Int64", "mat_trials": "Int64",
@@ -51,24 +50,16 @@ def find_meshes(folder):
     -------
     list of (name, absolute Path)
     """
-    folder = pybullet_path(str(folder).removeprefix("pybullet:")) if str(folder).startswith("pybullet:") \
-        else Path(folder)
-    if not folder.is_dir():
-        raise BadInputError(f"{folder}: not a folder")
-    paths = sorted((path.resolve() for path in folder.rglob("*") if path.suffix.lower() in MESH_SUFFIXES
-                    and path.is_file()), key=lambda path: (natural_key(path), str(path)))
-    if not paths:
-        raise BadInputError(f"{folder}: holds no mesh ({', '.join(sorted(MESH_SUFFIXES))})")
-    stems = [path.stem for path in paths]
+    folder, files = mesh_files(folder)
+    stems = [relative.stem for relative, _ in files]
     unique = len(set(stems)) == len(stems)
-    names = [stem if unique else "_".join(path.relative_to(folder.resolve()).with_suffix("").parts)
-             for stem, path in zip(stems, paths)]
+    names = [stem if unique else "_".join(relative.with_suffix("").parts) for stem, (relative, _) in zip(stems, files)]
     names = [re.sub(r"[^A-Za-z0-9_.-]", "_", name) for name in names]
     names = [f"mesh{name}" if name[0] in "_." else name for name in names]  # parquet readers skip _* and .* files
     if len(set(names)) < len(names):  # two files would write the same output files
         clash = next(name for name in names if names.count(name) > 1)
         raise BadInputError(f"{folder}: two meshes give the object name {clash!r}; rename one")
-    return list(zip(names, paths))
+    return [(name, path) for name, (_, path) in zip(names, files)]
 
 
 def object_key(path, *, scale, seed, hands, params):

@@ -15,16 +15,18 @@ NaN/inf coordinates, open or non-manifold surfaces (after the hole repairs below
 volume, and sizes outside the accepted extent range (wrong units). Documented repairs:
 duplicate vertices are merged, degenerate and duplicate faces dropped, small (triangle and
 quad) holes filled, planar open ends capped (``cap_planar_holes``: e.g. the open tube ends of
-the handle of pybullet's ``objects/mug.obj``), inverted winding flipped, and several bodies
-united into one solid with manifold3d.
+the handle of pybullet's ``objects/mug.obj``; a :class:`RepairWarning` says so), inverted
+winding flipped, and several bodies united into one solid with manifold3d.
 """
 
+import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 import trimesh
 
-from .errors import BadInputError
+from .errors import BadInputError, BadParamsError
 
 MESH_SUFFIXES = {".obj", ".stl", ".ply", ".off", ".glb", ".gltf"}
 
@@ -50,6 +52,69 @@ def pybullet_path(relative):
     import pybullet_data
 
     return Path(pybullet_data.getDataPath()) / relative
+
+
+class RepairWarning(UserWarning):
+    """A repair that changed the shape of an input mesh (an open end capped): the mesh is used, but
+    the user should check that it is the solid they meant."""
+
+
+def mesh_files(folder):
+    """The folder (``pybullet:DIR`` resolved to the installed pybullet_data) and the mesh files
+    under it, recursively, in natural order of their stems (``2`` before ``10``).
+
+    Returns
+    -------
+    folder : Path
+    files : list of (Path relative to folder, absolute resolved Path), never empty
+    """
+    from .catalogue import natural_key  # catalogue imports this module
+
+    folder = pybullet_path(str(folder).removeprefix("pybullet:")) if str(folder).startswith("pybullet:") \
+        else Path(folder)
+    if not folder.is_dir():
+        raise BadInputError(f"{folder}: not a folder")
+    relatives = sorted((path.relative_to(folder) for path in folder.rglob("*")
+                        if path.suffix.lower() in MESH_SUFFIXES and path.is_file()),
+                       key=lambda path: (natural_key(path), str(path)))
+    if not relatives:
+        raise BadInputError(f"{folder}: holds no mesh ({', '.join(sorted(MESH_SUFFIXES))})")
+    return folder, [(relative, (folder / relative).resolve()) for relative in relatives]
+
+
+def select_meshes(meshes, *, folder, only=None, limit=None):
+    """The ``(name, path)`` pairs of ``meshes`` whose file stem is in ``only`` (every stem must
+    match a file), then the first ``limit`` of them (order kept)."""
+    if only is not None:
+        wanted = {str(stem) for stem in only}
+        missing = sorted(wanted - {path.stem for _, path in meshes})
+        if missing:
+            raise BadInputError(f"{folder}: no mesh named {', '.join(missing)}")
+        meshes = [(name, path) for name, path in meshes if path.stem in wanted]
+    if limit is not None:
+        if limit < 1:
+            raise BadParamsError(f"--limit must be at least 1, got {limit}")
+        meshes = meshes[:limit]
+    return meshes
+
+
+def object_name(relative, prefix=""):
+    """The params.yaml object name of the mesh file at ``relative`` (a path under the listed folder).
+
+    The path's parts, suffix dropped, joined with ``-``; each part keeps ``[A-Za-z0-9_]`` (other
+    characters, ``-`` included, become ``_``), so two files give one name only if their paths
+    differ in those characters or the suffix. ``prefix`` goes in front; a name YAML would not
+    read as that string (``1``, ``true``) gets ``mesh_`` in front. DVC takes ``-`` and ``_`` in
+    the stage names it builds from these (``sample@NAME-1.0``).
+    """
+    import yaml
+
+    parts = list(Path(relative).with_suffix("").parts)
+    parts[0] = f"{prefix}{parts[0]}"
+    name = "-".join(re.sub(r"\W", "_", part) for part in parts)
+    if not name[:1].isalpha() or yaml.safe_load(name) != name:
+        name = f"mesh_{name}"
+    return name
 
 
 def primitive(name, **shape):
@@ -127,7 +192,8 @@ def check_size(points, *, name, min_extent, max_extent):
     diagonal = float(np.linalg.norm(np.ptp(np.asarray(points), axis=0)))
     if not min_extent <= diagonal <= max_extent:
         raise BadInputError(f"{name}: bounding-box diagonal {diagonal:.4g} m is outside "
-                            f"[{min_extent:g}, {max_extent:g}] m: wrong units? (set the object's scale)")
+                            f"[{min_extent:g}, {max_extent:g}] m: wrong units? (for a mesh in millimetres pass "
+                            "--scale 0.001, or set the object's scale in params.yaml)")
     return diagonal
 
 
@@ -146,6 +212,11 @@ def validate_mesh(mesh, *, name, min_extent, max_extent):
     Raises
     ------
     BadInputError
+
+    Warns
+    -----
+    RepairWarning
+        When open ends were capped.
     """
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     faces = np.asarray(mesh.faces)
@@ -162,7 +233,9 @@ def validate_mesh(mesh, *, name, min_extent, max_extent):
     diagonal = check_size(mesh.vertices, name=name, min_extent=min_extent, max_extent=max_extent)
     if not mesh.is_watertight:
         mesh.fill_holes()
+    capped_edges = 0
     if not mesh.is_watertight:
+        capped_edges = int((np.bincount(mesh.edges_unique_inverse, minlength=len(mesh.edges_unique)) == 1).sum())
         mesh = cap_planar_holes(mesh)
     if not mesh.is_watertight:
         edge_uses = np.bincount(mesh.edges_unique_inverse, minlength=len(mesh.edges_unique))
@@ -178,6 +251,9 @@ def validate_mesh(mesh, *, name, min_extent, max_extent):
         raise BadInputError(f"{name}: encloses zero volume")
     if volume < 0:
         mesh.invert()
+    if capped_edges:  # a cup modelled as one sheet is now the solid it bounds: say so
+        warnings.warn(f"{name}: open surface closed by capping its planar holes ({capped_edges} open edges); "
+                      "check that it is meant to be that solid", RepairWarning, stacklevel=2)
     return mesh
 
 

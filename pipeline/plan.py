@@ -13,10 +13,10 @@ from .candidates import generate_for_hands
 from .hands import get_hand
 from .mat import reconstruct
 from .medial_axis import medial_axis
-from .objects import source_key
+from .objects import RepairWarning, source_key
 from .params import Params
 from .sampling import sample_object
-from .symmetry import CLASSES, classify
+from .symmetry import CLASSES, INTERIOR, classify
 from .trials import default_workers
 from .trials import simulate as run_simulation
 from .trials import summary as trial_summary
@@ -86,9 +86,16 @@ def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, hand
     return artefacts, timings
 
 
-def summary(artefacts, timings, *, source, scale, seed):
-    """The JSON-ready summary of a chain run: counts and per-stage ``timings_s``."""
+def summary(artefacts, timings, *, source, scale, seed, hands=(), warnings=()):
+    """The JSON-ready summary of a chain run: counts, per-stage ``timings_s`` and ``warnings``.
+
+    ``hands`` (the names or spec paths planned for) puts each hand into ``candidates``, 0 for
+    one with none, which also adds a warning; ``warnings`` are the chain's own (one line each).
+    """
     spheres = artefacts["mat"]
+    counts = artefacts["candidates"].groupby("hand").size()
+    candidates = {**{get_hand(hand).name: 0 for hand in hands},
+                  **{str(hand): int(count) for hand, count in counts.items()}}
     return {
         "source": source,
         "scale": scale,
@@ -102,11 +109,34 @@ def summary(artefacts, timings, *, source, scale, seed):
         "radius_m": {"min": float(spheres.radii.min()), "median": float(np.median(spheres.radii)),
                      "max": float(spheres.radii.max())},
         "classes": dict(zip(CLASSES, np.bincount(artefacts["classify"].class_id, minlength=len(CLASSES)).tolist())),
-        "candidates": {str(hand): int(count) for hand, count in artefacts["candidates"].groupby("hand").size().items()},
+        "candidates": candidates,
         **(trial_summary(artefacts["trials"]) if "trials" in artefacts else {}),
         "keys": {stage: artefact.key for stage, artefact in artefacts.items() if hasattr(artefact, "key")},
         "timings_s": {stage: round(seconds, 4) for stage, seconds in timings.items()},
+        "warnings": list(warnings) + [no_candidates_warning(get_hand(hand), artefacts["classify"], source)
+                                      for hand in hands if not candidates[get_hand(hand).name]],
     }
+
+
+def no_candidates_warning(hand, symmetry, source):
+    """Why ``hand`` (a Hand) gets no grasp candidate on the reduced set ``symmetry``: one line."""
+    diameters = 2.0 * np.asarray(symmetry.radii)
+    if not len(diameters):
+        return f"hand {hand.name}: no grasp candidates on {source}: the reduced set holds no medial sphere"
+    if (diameters > hand.max_graspable_diameter).all():
+        return (f"hand {hand.name}: no grasp candidates on {source}: all {len(diameters)} reduced medial spheres "
+                f"are wider than its max_graspable_diameter {hand.max_graspable_diameter:g} m "
+                f"(narrowest {diameters.min():.3g} m)")
+    return (f"hand {hand.name}: no grasp candidates on {source}: its graspable medial spheres are all of "
+            f"class {CLASSES[INTERIOR]}")
+
+
+def warning_lines(caught):
+    """One line per Python warning caught while the chain ran (``warnings.catch_warnings(record=True)``):
+    a pipeline repair as its message, any other with its category and origin."""
+    return [str(caught_warning.message) if issubclass(caught_warning.category, RepairWarning) else
+            f"{caught_warning.category.__name__}: {caught_warning.message} "
+            f"({Path(caught_warning.filename).name}:{caught_warning.lineno})" for caught_warning in caught]
 
 
 def write_plan(out_dir, artefacts, summary_dict):
