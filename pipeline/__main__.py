@@ -153,152 +153,20 @@ def _hands(args, parser):
 
 def _objects(args):
     from .artefacts import atomic_write
-    from .catalogue import entry_lines, replace_objects
-    from .errors import BadInputError, PipelineError
-    from .objects import mesh_files, object_name, select_meshes
+    from .catalogue import entry_lines, figure_objects_following, folder_entries, replace_objects
 
-    if args.scale is not None and args.size is not None:
-        raise BadInputError("give --scale or --size, not both")
-    folder, files = mesh_files(args.folder)
-    named = select_meshes([(object_name(relative, args.prefix), path) for relative, path in files],
-                          folder=folder, only=args.only.split(",") if args.only else None)
-    first = {}
-    for name, path in named:
-        if name in first:  # two files would share data/<name>/ and their DVC stages
-            raise BadInputError(f"{first[name]} and {path} both give the object name {name!r}; rename one")
-        first[name] = path
     params_path = args.write or (PARAMS_FILE if Path(PARAMS_FILE).is_file() else None)
-    sample, scales = _sample_checks(params_path)
-    entries = {}
-    for name, path in named:
-        try:
-            entries[name] = {"source": str(path), "scale": _checked_scale(path, args.scale, args.size, sample, scales)}
-        except PipelineError as err:  # one bad file in a folder should not stop the listing
-            print(f"warning: skipped {err}", file=sys.stderr)
-    if not entries:
-        raise BadInputError(f"{folder}: no mesh passed the sample stage's checks (see the warnings above)")
+    entries = folder_entries(args.folder, prefix=args.prefix, scale=args.scale, size=args.size,
+                             only=args.only.split(",") if args.only else None, params_path=params_path,
+                             warn=lambda message: print(f"warning: {message}", file=sys.stderr))
     if not args.write:
         print("\n".join(["objects:"] + [f"  {line}" for line in entry_lines(entries)]))
         return
     text = replace_objects(Path(args.write).read_text(), entries)
-    text, figures = _follow_figure_objects(text, list(entries), source=args.write)
+    text, figures = figure_objects_following(text, list(entries), source=args.write)
     atomic_write(args.write, lambda stream: stream.write(text.encode()))
     print(f"wrote {len(entries)} objects into {args.write} (report.figure_objects: {', '.join(figures)}): "
           "run `dvc repro`")
-
-
-def _sample_checks(path):
-    """``(SampleParams, scales)`` of the params file at ``path`` (None: the defaults): what the sample
-    stage checks a mesh with. Only these are read, so a file whose other sections no longer fit its
-    objects (figure_objects of an earlier listing) can still be rewritten."""
-    import yaml
-
-    from .errors import BadParamsError
-    from .params import SampleParams, section_from_mapping
-
-    if path is None:
-        return Params().sample, Params().scales
-    try:
-        raw = yaml.safe_load(Path(path).read_text()) or {}
-    except FileNotFoundError:
-        raise BadParamsError(f"{path}: file not found") from None
-    except yaml.YAMLError as err:
-        raise BadParamsError(f"{path}: not valid YAML ({str(err).replace(chr(10), ' ')})") from None
-    if not isinstance(raw, dict):
-        raise BadParamsError(f"{path}: must be a mapping of sections")
-    sample = section_from_mapping(SampleParams, raw.get("sample"), section="sample", source=str(path))
-    scales = raw.get("scales", [1.0])
-    if not (isinstance(scales, list) and scales and all(
-            isinstance(scale, (int, float)) and not isinstance(scale, bool) and scale > 0 for scale in scales)):
-        raise BadParamsError(f"{path}: scales must be a list of positive numbers, got {scales!r}")
-    return sample, [float(scale) for scale in scales]
-
-
-def _checked_scale(path, scale, size, sample, scales):
-    """The object scale of the mesh at ``path`` (``scale``, or the one giving a ``size`` m diagonal),
-    after the sample stage's checks at each of ``scales``; raises BadInputError naming the file."""
-    import dataclasses
-    import warnings
-
-    import numpy as np
-
-    from .errors import BadInputError
-    from .objects import RepairWarning, check_size, load_source
-    from .sampling import sample_object
-
-    factor = 1.0 if scale is None else float(scale)
-    if size is not None:
-        loaded = load_source(str(path))
-        points = np.asarray(loaded[1].vertices if loaded[0] == "mesh" else loaded[1])
-        if not (len(points) and np.isfinite(points).all()):
-            raise BadInputError(f"{path}: no points, or NaN or infinite coordinates")
-        diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
-        if not diagonal > 0:
-            raise BadInputError(f"{path}: all points coincide, no size to scale to --size {size:g}")
-        factor = float(size) / diagonal
-    factor = float(f"{factor:.6g}")  # as written into params.yaml
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", RepairWarning)
-        # the stage's own load, repairs and checks; few samples, since only the checks matter here
-        surface = sample_object(str(path), scale=factor * scales[0], rng=np.random.default_rng(0),
-                                **{**dataclasses.asdict(sample), "count": 100})
-    for repair in caught:
-        print(f"warning: {repair.message}", file=sys.stderr)
-    coordinates = surface.vertices if len(surface.vertices) else surface.points
-    for other in scales[1:]:  # the stage runs the object at every params scale: the units check at each
-        try:
-            check_size(coordinates * (other / scales[0]), name=str(path), min_extent=sample.min_extent_m,
-                       max_extent=sample.max_extent_m)
-        except BadInputError as err:
-            raise BadInputError(f"{err} [at params scale {other:g}]") from None
-    return factor
-
-
-def _follow_figure_objects(text, names, *, source):
-    """``text`` (a params file) with ``report.figure_objects`` kept to the objects ``names``: the ones
-    it names that remain, else the first up to 3 of ``names``. Returns ``(text, figure_objects)``."""
-    import re
-
-    import yaml
-
-    from .errors import BadInputError
-    from .params import ReportParams
-
-    report = (yaml.safe_load(text) or {}).get("report") or {}
-    before = report.get("figure_objects", ReportParams().figure_objects) if isinstance(report, dict) else []
-    figures = [name for name in before if name in names] or names[:3]
-    if figures == before and "figure_objects" in report:
-        return text, figures
-    flow = "[" + ", ".join(name if yaml.safe_load(name) == name else json.dumps(name) for name in figures) + "]"
-    lines = text.splitlines(keepends=True)
-    section = next((number for number, line in enumerate(lines) if re.match(r"report:\s*(#.*)?$", line)), None)
-    if section is None:
-        text = text + ("" if text.endswith("\n") or not text else "\n") + f"\nreport:\n  figure_objects: {flow}\n"
-    else:
-        end = section + 1
-        while end < len(lines) and (lines[end].startswith((" ", "\t")) or not lines[end].strip()):
-            end += 1
-        key = next((number for number in range(section + 1, end)
-                    if re.match(r"\s+figure_objects:", lines[number])), None)
-        if key is None:
-            lines.insert(section + 1, f"  figure_objects: {flow}\n")
-        else:
-            indent, rest = re.match(r"(\s+figure_objects:)(.*)", lines[key].rstrip("\n")).groups()
-            comment = re.search(r"\s+#.*$", rest[rest.find("]") + 1:] if "[" in rest else rest)
-            lines[key] = f"{indent} {flow}{comment.group(0) if comment else ''}\n"
-            if "[" not in rest:  # a block list: drop its "- name" lines
-                after = key + 1
-                while after < end and re.match(r"\s+-\s", lines[after]):
-                    del lines[after]
-                    end -= 1
-        text = "".join(lines)
-    try:
-        written = (yaml.safe_load(text).get("report") or {}).get("figure_objects")
-    except yaml.YAMLError:  # e.g. a flow list over several lines, only partly replaced
-        written = None
-    if written != figures:
-        raise BadInputError(f"{source}: report.figure_objects cannot be rewritten to {figures} (edit it by hand)")
-    return text, figures
 
 
 def _command_params(args):

@@ -91,16 +91,13 @@ def plan_object(name, path, *, scale, seed, hands, params):
         return {**row, "status": "error", "reason": str(err), "seconds": time.perf_counter() - start}, None
     trials = artefacts["trials"]
     result = summary(trials)
-    mat, baseline = result, result["baseline"]
-
-    def rate(counts, key):  # no trials: no rate, not 0 % (as in the report)
-        return counts[key] if counts["trials"] else float("nan")
+    mat, baseline = result, result["baseline"]  # no trials: NaN rates, not 0 % (trials.summarise)
 
     row.update(status="ok", reason="", samples=len(artefacts["sample"].points), medial_spheres=len(artefacts["mat"]),
                reduced_spheres=len(artefacts["classify"]), candidates=len(artefacts["candidates"]),
-               mat_trials=mat["trials"], force_closure_rate=rate(mat, "force_closure_rate"),
-               mean_epsilon=rate(mat, "mean_epsilon"), baseline_trials=baseline["trials"],
-               baseline_force_closure_rate=rate(baseline, "force_closure_rate"), seconds=time.perf_counter() - start)
+               mat_trials=mat["trials"], force_closure_rate=mat["force_closure_rate"],
+               mean_epsilon=mat["mean_epsilon"], baseline_trials=baseline["trials"],
+               baseline_force_closure_rate=baseline["force_closure_rate"], seconds=time.perf_counter() - start)
     if not len(trials):  # no candidate fits a hand: no trials file (an empty table would have other column types)
         return row, None
     return row, trials.assign(object=name)[["object", *trials.columns]]

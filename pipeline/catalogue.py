@@ -4,31 +4,32 @@ DVC expands its stages from params.yaml when it reads dvc.yaml, before any stage
 folder cannot be listed at run time: this module writes one entry per mesh instead.
 """
 
+import dataclasses
 import json
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from .errors import BadInputError
-from .objects import MESH_SUFFIXES, load_source
+from .errors import BadInputError, BadParamsError, PipelineError
+from .objects import RepairWarning, check_size, load_source, mesh_files, object_name, select_meshes
+from .params import Params, ReportParams, SampleParams, section_from_mapping
+from .sampling import sample_object
 
 
-def natural_key(path):
-    """Sort key of a path by its stem, numbers by value (``2`` before ``10``)."""
-    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", path.stem)]
-
-
-def folder_entries(folder, *, prefix="", scale=None, size=None, only=None):
-    """``{name: {"source": path, "scale": s}}`` for every mesh file in ``folder`` (natural order).
+def folder_entries(folder, *, prefix="", scale=None, size=None, only=None, params_path=None, warn=None):
+    """``{name: {"source": path, "scale": s}}`` for every mesh file under ``folder`` (recursively,
+    natural order) that passes the ``sample`` stage's own load, repairs and checks at every
+    params scale; a file that fails is skipped with ``warn(message)`` naming it.
 
     Parameters
     ----------
     folder : str or Path
+        Or ``pybullet:DIR``.
     prefix : str
-        Put before each file's stem to make the object name (names keep ``[A-Za-z0-9_]``; one
-        not starting with a letter gets ``mesh_`` in front).
+        Put before each name (:func:`pipeline.objects.object_name`).
     scale : float, optional
         The same factor for every mesh (0.001 for millimetres).
     size : float, optional
@@ -36,31 +37,31 @@ def folder_entries(folder, *, prefix="", scale=None, size=None, only=None):
         such as the segmentation benchmark's); the scale is computed per file.
     only : iterable of str, optional
         File stems to keep (e.g. the benchmark ids of Table I: ``1``, ``41``, ...).
+    params_path : str or Path, optional
+        The params file whose ``sample`` section and ``scales`` the checks use (None: defaults).
+    warn : callable(str), optional
+        Receives the skipped files and the repairs (capped holes).
     """
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise BadInputError(f"{folder}: not a folder")
+    warn = warn or (lambda message: None)
     if scale is not None and size is not None:
         raise BadInputError("give --scale or --size, not both")
-    paths = sorted((path for path in folder.iterdir() if path.suffix.lower() in MESH_SUFFIXES), key=natural_key)
-    if only is not None:
-        wanted = {str(stem) for stem in only}
-        missing = sorted(wanted - {path.stem for path in paths})
-        if missing:
-            raise BadInputError(f"{folder}: no mesh named {', '.join(missing)}")
-        paths = [path for path in paths if path.stem in wanted]
-    if not paths:
-        raise BadInputError(f"{folder}: holds no mesh ({', '.join(sorted(MESH_SUFFIXES))})")
+    root, files = mesh_files(folder)
+    named = select_meshes([(object_name(relative, prefix), path) for relative, path in files],
+                          folder=root, only=only)
+    first = {}
+    for name, path in named:
+        if name in first:  # two files would share data/<name>/ and their DVC stages
+            raise BadInputError(f"{first[name]} and {path} both give the object name {name!r}; rename one")
+        first[name] = path
+    sample, scales = _sample_checks(params_path)
     entries = {}
-    for path in paths:
-        factor = 1.0 if scale is None else float(scale)
-        if size is not None:
-            loaded = load_source(str(path.resolve()))
-            points = loaded[1].vertices if loaded[0] == "mesh" else loaded[1]
-            factor = float(size) / float(np.linalg.norm(np.ptp(np.asarray(points), axis=0)))
-        name = re.sub(r"\W", "_", f"{prefix}{path.stem}")
-        name = name if name[:1].isalpha() else f"mesh_{name}"  # YAML would read a key 1 as a number
-        entries[name] = {"source": str(path.resolve()), "scale": float(f"{factor:.6g}")}
+    for name, path in named:
+        try:
+            entries[name] = {"source": str(path), "scale": _checked_scale(path, scale, size, sample, scales, warn)}
+        except PipelineError as err:  # one bad file in a folder should not stop the listing
+            warn(f"skipped {err}")
+    if not entries:
+        raise BadInputError(f"{root}: no mesh passed the sample stage's checks (see the warnings above)")
     return entries
 
 
@@ -89,3 +90,96 @@ def replace_objects(params_text, entries):
 def entry_lines(entries):
     """One flow-style YAML line per entry: ``name: {source: "...", scale: s}``."""
     return [f"{name}: {{source: {json.dumps(spec['source'])}, scale: {spec['scale']}}}" for name, spec in entries.items()]
+
+
+def _sample_checks(path):
+    """``(SampleParams, scales)`` of the params file at ``path`` (None: the defaults): what the sample
+    stage checks a mesh with. Only these are read, so a file whose other sections no longer fit its
+    objects (figure_objects of an earlier listing) can still be rewritten."""
+    if path is None:
+        return Params().sample, list(Params().scales)
+    try:
+        raw = yaml.safe_load(Path(path).read_text()) or {}
+    except FileNotFoundError:
+        raise BadParamsError(f"{path}: file not found") from None
+    except yaml.YAMLError as err:
+        raise BadParamsError(f"{path}: not valid YAML ({str(err).replace(chr(10), ' ')})") from None
+    if not isinstance(raw, dict):
+        raise BadParamsError(f"{path}: must be a mapping of sections")
+    sample = section_from_mapping(SampleParams, raw.get("sample"), section="sample", source=str(path))
+    scales = raw.get("scales", [1.0])
+    if not (isinstance(scales, list) and scales and all(
+            isinstance(scale, (int, float)) and not isinstance(scale, bool) and scale > 0 for scale in scales)):
+        raise BadParamsError(f"{path}: scales must be a list of positive numbers, got {scales!r}")
+    return sample, [float(scale) for scale in scales]
+
+
+def _checked_scale(path, scale, size, sample, scales, warn):
+    """The object scale of the mesh at ``path`` (``scale``, or the one giving a ``size`` m diagonal),
+    after the sample stage's checks at each of ``scales``; raises BadInputError naming the file."""
+    factor = 1.0 if scale is None else float(scale)
+    if size is not None:
+        loaded = load_source(str(path))
+        points = np.asarray(loaded[1].vertices if loaded[0] == "mesh" else loaded[1])
+        if not (len(points) and np.isfinite(points).all()):
+            raise BadInputError(f"{path}: no points, or NaN or infinite coordinates")
+        diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
+        if not diagonal > 0:
+            raise BadInputError(f"{path}: all points coincide, no size to scale to --size {size:g}")
+        factor = float(size) / diagonal
+    factor = float(f"{factor:.6g}")  # as written into params.yaml
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RepairWarning)
+        # the stage's own load, repairs and checks; few samples, since only the checks matter here
+        surface = sample_object(str(path), scale=factor * scales[0], rng=np.random.default_rng(0),
+                                **{**dataclasses.asdict(sample), "count": 100})
+    for repair in caught:
+        warn(str(repair.message))
+    coordinates = surface.vertices if len(surface.vertices) else surface.points
+    for other in scales[1:]:  # the stage runs the object at every params scale: the units check at each
+        try:
+            check_size(coordinates * (other / scales[0]), name=str(path), min_extent=sample.min_extent_m,
+                       max_extent=sample.max_extent_m)
+        except BadInputError as err:
+            raise BadInputError(f"{err} [at params scale {other:g}]") from None
+    return factor
+
+
+def figure_objects_following(text, names, *, source):
+    """``text`` (a params file) with ``report.figure_objects`` kept to the objects ``names``: the ones
+    it names that remain, else the first up to 3 of ``names``. Returns ``(text, figure_objects)``."""
+    report = (yaml.safe_load(text) or {}).get("report") or {}
+    before = report.get("figure_objects", ReportParams().figure_objects) if isinstance(report, dict) else []
+    figures = [name for name in before if name in names] or names[:3]
+    if figures == before and "figure_objects" in report:
+        return text, figures
+    flow = "[" + ", ".join(name if yaml.safe_load(name) == name else json.dumps(name) for name in figures) + "]"
+    lines = text.splitlines(keepends=True)
+    section = next((number for number, line in enumerate(lines) if re.match(r"report:\s*(#.*)?$", line)), None)
+    if section is None:
+        text = text + ("" if text.endswith("\n") or not text else "\n") + f"\nreport:\n  figure_objects: {flow}\n"
+    else:
+        end = section + 1
+        while end < len(lines) and (lines[end].startswith((" ", "\t")) or not lines[end].strip()):
+            end += 1
+        key = next((number for number in range(section + 1, end)
+                    if re.match(r"\s+figure_objects:", lines[number])), None)
+        if key is None:
+            lines.insert(section + 1, f"  figure_objects: {flow}\n")
+        else:
+            indent, rest = re.match(r"(\s+figure_objects:)(.*)", lines[key].rstrip("\n")).groups()
+            comment = re.search(r"\s+#.*$", rest[rest.find("]") + 1:] if "[" in rest else rest)
+            lines[key] = f"{indent} {flow}{comment.group(0) if comment else ''}\n"
+            if "[" not in rest:  # a block list: drop its "- name" lines
+                after = key + 1
+                while after < end and re.match(r"\s+-\s", lines[after]):
+                    del lines[after]
+                    end -= 1
+        text = "".join(lines)
+    try:
+        written = (yaml.safe_load(text).get("report") or {}).get("figure_objects")
+    except yaml.YAMLError:  # e.g. a flow list over several lines, only partly replaced
+        written = None
+    if written != figures:
+        raise BadInputError(f"{source}: report.figure_objects cannot be rewritten to {figures} (edit it by hand)")
+    return text, figures

@@ -59,6 +59,11 @@ class RepairWarning(UserWarning):
     the user should check that it is the solid they meant."""
 
 
+def natural_key(path):
+    """Sort key of a path by its stem, numbers by value (``2`` before ``10``)."""
+    return [int(part) if part.isdigit() else part for part in re.split(r"(\d+)", path.stem)]
+
+
 def mesh_files(folder):
     """The folder (``pybullet:DIR`` resolved to the installed pybullet_data) and the mesh files
     under it, recursively, in natural order of their stems (``2`` before ``10``).
@@ -68,8 +73,6 @@ def mesh_files(folder):
     folder : Path
     files : list of (Path relative to folder, absolute resolved Path), never empty
     """
-    from .catalogue import natural_key  # catalogue imports this module
-
     folder = pybullet_path(str(folder).removeprefix("pybullet:")) if str(folder).startswith("pybullet:") \
         else Path(folder)
     if not folder.is_dir():

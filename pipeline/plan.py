@@ -1,15 +1,15 @@
 """Run every implemented stage on one object, outside DVC, timing each stage."""
 
 import dataclasses
-import json
 import time
 from pathlib import Path
 
 import numpy as np
 
 from . import sphere_grid
-from .artefacts import atomic_write, write_table
+from .artefacts import atomic_write, json_bytes, write_table
 from .candidates import generate_for_hands
+from .dag import ARTEFACTS, STAGES
 from .hands import get_hand
 from .mat import reconstruct
 from .medial_axis import medial_axis
@@ -21,9 +21,10 @@ from .trials import default_workers
 from .trials import simulate as run_simulation
 from .trials import summary as trial_summary
 
-ARTEFACT_NAMES = {"sample": "surface.npz", "medial_axis": "medial_axis.npz", "mat": "spheres.npz",
-                  "sphere_grid": "sphere_grid.npz", "classify": "symmetry.npz", "candidates": "candidates.parquet",
-                  "trials": "trials.parquet", "contacts": "contacts.parquet"}
+#: file of each artefact a chain run makes, by its key in :func:`run_chain`'s result: the stage
+#: that makes it (``trials`` and ``contacts`` by their own names), named as in the DVC stages
+ARTEFACT_NAMES = {(stage.name if len(stage.outputs) == 1 else output): ARTEFACTS[output]
+                  for stage in STAGES for output in stage.outputs}
 
 
 def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, hands=None, simulate=False,
@@ -143,9 +144,9 @@ def write_plan(out_dir, artefacts, summary_dict):
     """Write each artefact under its DVC name and ``summary.json`` into ``out_dir``."""
     out_dir = Path(out_dir)
     for stage, artefact in artefacts.items():
-        if stage in ("candidates", "trials", "contacts"):
+        if ARTEFACT_NAMES[stage].endswith(".parquet"):
             write_table(out_dir / ARTEFACT_NAMES[stage], artefact)
         else:
             artefact.save(out_dir / ARTEFACT_NAMES[stage])
-    text = json.dumps(summary_dict, indent=2).encode()
+    text = json_bytes(summary_dict, indent=2)
     atomic_write(out_dir / "summary.json", lambda stream: stream.write(text))

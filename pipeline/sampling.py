@@ -140,7 +140,7 @@ def sample_object(source, *, count, rng, sharp_angle_deg, min_extent_m, max_exte
     """
     params = dict(count=count, sharp_angle_deg=sharp_angle_deg, min_extent_m=min_extent_m,
                   max_extent_m=max_extent_m, cloud_normal_neighbours=cloud_normal_neighbours,
-                  scale=scale, shape=shape)
+                  scale=scale, shape=shape or {})  # no shape keywords: one key, whether None or {}
     loaded = load_source(source, scale=scale, shape=shape)
     if loaded[0] == "mesh":
         mesh = validate_mesh(loaded[1], name=source, min_extent=min_extent_m, max_extent=max_extent_m)

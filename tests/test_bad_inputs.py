@@ -172,12 +172,13 @@ def open_tube(radius=0.02, height=0.1, sections=128, wave=0.0):
 
 
 def test_planar_open_ends_are_capped():
-    from pipeline.objects import cap_planar_holes, validate_mesh
+    from pipeline.objects import RepairWarning, cap_planar_holes, validate_mesh
 
     tube = open_tube()
     before = tube.vertices.copy(), tube.faces.copy()
     assert len(tube.outline().entities) == 2
-    mesh = validate_mesh(tube, name="tube", min_extent=0.005, max_extent=5.0)
+    with pytest.warns(RepairWarning, match=r"tube: open surface closed by capping its planar holes \(256 open edges\)"):
+        mesh = validate_mesh(tube, name="tube", min_extent=0.005, max_extent=5.0)
     assert mesh.is_watertight and mesh.is_winding_consistent and len(mesh.split(only_watertight=False)) == 1
     # the capped tube is the cylinder: pi r^2 h, less 0.04 % for the 128-gon section
     np.testing.assert_allclose(mesh.volume, np.pi * 0.02 ** 2 * 0.1, rtol=0.01)
@@ -199,7 +200,7 @@ def test_non_planar_open_end_is_rejected(tmp_path):
 def test_pybullet_mug_is_capped_and_united():
     # pybullet_data's objects/mug.obj: a watertight hollow cup and a handle tube whose two open
     # 12-gon ends (y = 0.0385 m) sit in the cup wall
-    from pipeline.objects import cap_planar_holes, load_source, validate_mesh
+    from pipeline.objects import RepairWarning, cap_planar_holes, load_source, validate_mesh
 
     _, raw = load_source("pybullet:objects/mug.obj")
     raw = trimesh.Trimesh(raw.vertices, raw.faces)
@@ -207,7 +208,8 @@ def test_pybullet_mug_is_capped_and_united():
     assert cup.is_watertight and not handle.is_watertight
     handle = cap_planar_holes(handle)
     assert handle.is_watertight and handle.volume > 0
-    mesh = validate_mesh(raw, name="mug", min_extent=0.005, max_extent=5.0)
+    with pytest.warns(RepairWarning, match=r"mug: open surface closed by capping its planar holes \(24 open edges\)"):
+        mesh = validate_mesh(raw, name="mug", min_extent=0.005, max_extent=5.0)
     assert mesh.is_watertight and len(mesh.split(only_watertight=False)) == 1
     # the union holds the cup and nearly all the handle (its ends overlap the wall)
     assert cup.volume + 0.9 * handle.volume < mesh.volume <= cup.volume + handle.volume

@@ -245,3 +245,42 @@ def test_hands_cli_exports_a_hand_that_plan_accepts_and_renders_pictures(tmp_pat
     bad = run([sys.executable, "-m", "pipeline", "plan", "primitive:box", "--hand", "nohand.yaml", "--out", "x"],
               tmp_path)
     assert bad.returncode == 2 and bad.stderr == "error: nohand.yaml: hand spec not found\n"
+
+
+@pytest.mark.slow
+def test_plan_batch_and_dvc_make_the_same_artefacts(tmp_path):
+    """The three entry points on one mesh, params and seed: the same bytes (batch keeps only the
+    trials, with an ``object`` column in front)."""
+    import trimesh
+
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    trimesh.creation.box([0.06, 0.04, 0.03]).export(meshes / "block.obj")
+    project = tmp_path / "project"
+    project.mkdir()
+    params = tiny_project(project)
+    params.update(objects={"block": {"source": str(meshes / "block.obj")}}, scales=[1.0], seed=4)
+    params["candidates"]["hands"] = ["barrett"]
+    params["simulate"].update(spheres_per_object=3, baseline_trials=3)
+    params["report"]["figure_objects"] = ["block"]
+    (project / "params.yaml").write_text(yaml.safe_dump(params))
+    repro = run([sys.executable, "-m", "dvc", "repro"], project)
+    assert repro.returncode == 0, repro.stderr + repro.stdout
+    planned = run([sys.executable, "-m", "pipeline", "plan", str(meshes / "block.obj"), "--params",
+                   str(project / "params.yaml"), "--out", str(tmp_path / "plan")], REPO)
+    assert planned.returncode == 0, planned.stderr
+    batch = run([sys.executable, "-m", "pipeline", "batch", str(meshes), "--hand", "barrett", "--params",
+                 str(project / "params.yaml"), "--workers", "1", "--out", str(tmp_path / "batch")], REPO)
+    assert batch.returncode == 0, batch.stderr
+
+    run_folder = project / "data" / "block" / "1.0"
+    for stage in dag.STAGES:
+        for artefact in stage.outputs:
+            name = dag.ARTEFACTS[artefact]
+            dvc_path = run_folder / "barrett" / name if artefact in dag.PER_HAND else run_folder / name
+            assert (tmp_path / "plan" / name).read_bytes() == dvc_path.read_bytes(), name
+    trials = pd.read_parquet(tmp_path / "plan" / "trials.parquet")
+    assert len(trials) > 3 and (trials.planner == "baseline").sum() == 3
+    from_batch = pd.read_parquet(tmp_path / "batch" / "trials" / "block.parquet")
+    assert from_batch.object.unique().tolist() == ["block"]
+    pd.testing.assert_frame_equal(from_batch.drop(columns="object"), trials)

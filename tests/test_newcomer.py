@@ -17,7 +17,8 @@ import yaml
 from conftest import complete_params
 from dvc.stage.utils import is_valid_name
 
-from pipeline.__main__ import _follow_figure_objects, main
+from pipeline.__main__ import main
+from pipeline.catalogue import figure_objects_following
 from pipeline.batch import find_meshes
 from pipeline.errors import BadInputError, BadParamsError
 from pipeline.hands import HANDS
@@ -119,12 +120,12 @@ def test_objects_write_keeps_figure_objects_naming_objects(folder, capsys):
 
 def test_figure_objects_rewrite_handles_block_lists_and_a_missing_key():
     block = "objects:\n  a: {}\nreport:\n  figure_objects:   # drawn\n    - gone\n    - a\n  epsilon_bins: 20\n"
-    text, figures = _follow_figure_objects(block, ["a", "b"], source="p.yaml")
+    text, figures = figure_objects_following(block, ["a", "b"], source="p.yaml")
     assert figures == ["a"] and yaml.safe_load(text)["report"] == {"figure_objects": ["a"], "epsilon_bins": 20}
     assert "# drawn" in text
-    text, figures = _follow_figure_objects("objects:\n  b: {}\n", ["b"], source="p.yaml")
+    text, figures = figure_objects_following("objects:\n  b: {}\n", ["b"], source="p.yaml")
     assert figures == ["b"] and yaml.safe_load(text)["report"] == {"figure_objects": ["b"]}
-    text, _ = _follow_figure_objects("objects: {}\nreport:\n  epsilon_bins: 20\n", ["yes"], source="p.yaml")
+    text, _ = figure_objects_following("objects: {}\nreport:\n  epsilon_bins: 20\n", ["yes"], source="p.yaml")
     assert yaml.safe_load(text)["report"] == {"figure_objects": ["yes"], "epsilon_bins": 20}  # quoted, not True
 
 
@@ -232,3 +233,14 @@ def test_medial_grasp_command_works_outside_the_repository(tmp_path):
     assert summary["counts"]["surface_samples"] == 3000  # this folder's params.yaml was read
     assert summary["candidates"]["armar3"] > 0 and summary["warnings"] == []
     assert REPO not in tmp_path.parents and tmp_path != REPO
+
+
+def test_a_run_without_trials_has_no_rate_not_zero(tmp_path, capsys):
+    # the 20 cm ball again, simulated: no candidates, so no trials; the rates are null in JSON
+    # (NaN in Python and in batch's tables), never 0 %
+    params = tmp_path / "tiny.yaml"
+    params.write_text(yaml.safe_dump(complete_params({"sample": {"count": 3000}})))
+    main(["plan", "primitive:sphere", "--scale", "2.5", "--params", str(params), "--out", str(tmp_path / "out")])
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["trials"] == 0 and summary["force_closure_rate"] is None and summary["mean_epsilon"] is None
+    assert summary["baseline"]["trials"] == 0 and summary["baseline"]["force_closure_rate"] is None
