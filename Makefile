@@ -41,6 +41,7 @@ test: setup
 
 lint: setup
 	ruff check pipeline stages tests
+	ruff format --check pipeline stages tests
 
 bench: setup
 	python -m pipeline bench

@@ -19,9 +19,13 @@ def _prog():
 
 def _subcommand(commands, name, *, help, description, examples):
     """A subcommand whose --help shows ``description`` and its example command lines as written."""
-    return commands.add_parser(name, help=help, description=description,
-                               epilog="example:\n" + "\n".join(f"  {line}" for line in examples),
-                               formatter_class=argparse.RawDescriptionHelpFormatter)
+    return commands.add_parser(
+        name,
+        help=help,
+        description=description,
+        epilog="example:\n" + "\n".join(f"  {line}" for line in examples),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
 
 
 @one_line_errors
@@ -32,96 +36,156 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog=prog, description=__doc__)
     commands = parser.add_subparsers(dest="command", required=True)
     plan = _subcommand(
-        commands, "plan", help="run every stage on one mesh, outside DVC",
+        commands,
+        "plan",
+        help="run every stage on one mesh, outside DVC",
         description="Run every stage (sample ... candidates, then the grasp trials) on one object, outside DVC,\n"
-                    "and write each artefact and summary.json into --out. Params come from --params, else\n"
-                    f"{PARAMS_FILE} in the current folder if present, else the built-in defaults.",
-        examples=[f"{prog} plan primitive:mug --out out/mug --spheres 20",
-                  f"{prog} plan my_part.stl --scale 0.001 --hand barrett --no-simulate --out out/part"])
+        "and write each artefact and summary.json into --out. Params come from --params, else\n"
+        f"{PARAMS_FILE} in the current folder if present, else the built-in defaults.",
+        examples=[
+            f"{prog} plan primitive:mug --out out/mug --spheres 20",
+            f"{prog} plan my_part.stl --scale 0.001 --hand barrett --no-simulate --out out/part",
+        ],
+    )
     plan.add_argument("mesh", help="mesh or point-cloud file, primitive:NAME or pybullet:RELPATH")
     plan.add_argument("--out", required=True, help="folder for the artefacts and summary.json")
     plan.add_argument("--scale", type=float, default=1.0, help="factor on the coordinates (0.001 for mm; default: 1)")
     plan.add_argument("--seed", type=int, default=None, help="overrides the params seed (default: params seed)")
-    plan.add_argument("--hand", action="append", default=None,
-                      help="built-in hand name or hand spec .yaml/.toml (repeatable; default: params candidates.hands)")
-    plan.add_argument("--spheres", type=int, default=None,
-                      help="random spheres per hand whose candidates are simulated "
-                           "(default: params simulate.spheres_per_object)")
-    plan.add_argument("--baseline", type=int, default=None,
-                      help="surface-normal baseline trials per hand (default: params simulate.baseline_trials; "
-                           "-1 = as many as the MAT trials)")
-    plan.add_argument("--workers", type=int, default=None,
-                      help="trial processes (default: params simulate.workers; 0 = every core)")
+    plan.add_argument(
+        "--hand",
+        action="append",
+        default=None,
+        help="built-in hand name or hand spec .yaml/.toml (repeatable; default: params candidates.hands)",
+    )
+    plan.add_argument(
+        "--spheres",
+        type=int,
+        default=None,
+        help="random spheres per hand whose candidates are simulated (default: params simulate.spheres_per_object)",
+    )
+    plan.add_argument(
+        "--baseline",
+        type=int,
+        default=None,
+        help="surface-normal baseline trials per hand (default: params simulate.baseline_trials; "
+        "-1 = as many as the MAT trials)",
+    )
+    plan.add_argument(
+        "--workers", type=int, default=None, help="trial processes (default: params simulate.workers; 0 = every core)"
+    )
     plan.add_argument("--no-simulate", action="store_true", help="stop after the candidates")
-    plan.add_argument("--record", action="store_true",
-                      help="also write recording.rrd (open with `rerun`) and log.mcap into --out")
-    plan.add_argument("--params", default=None,
-                      help=PARAMS_HELP)
+    plan.add_argument(
+        "--record", action="store_true", help="also write recording.rrd (open with `rerun`) and log.mcap into --out"
+    )
+    plan.add_argument("--params", default=None, help=PARAMS_HELP)
     batch = _subcommand(
-        commands, "batch", help="run every stage on every mesh of a folder, on Ray (local or a cluster)",
+        commands,
+        "batch",
+        help="run every stage on every mesh of a folder, on Ray (local or a cluster)",
         description="Plan every mesh under a folder (searched recursively) as one Ray task each, on an embedded\n"
-                    "local Ray or a cluster, into OUT/objects/*.parquet and OUT/trials/*.parquet. Objects done\n"
-                    "before with the same inputs are skipped, so an interrupted batch resumes.",
-        examples=[f"{prog} batch pybullet:random_urdfs --scale 0.015 --hand barrett --out out/random --limit 10",
-                  f"{prog} batch meshes/ --hand armar3 --hand barrett --only 1,41,81 --out out/chosen"])
-    batch.add_argument("folder",
-                       help="folder of meshes (searched recursively), or pybullet:DIR, e.g. pybullet:random_urdfs")
+        "local Ray or a cluster, into OUT/objects/*.parquet and OUT/trials/*.parquet. Objects done\n"
+        "before with the same inputs are skipped, so an interrupted batch resumes.",
+        examples=[
+            f"{prog} batch pybullet:random_urdfs --scale 0.015 --hand barrett --out out/random --limit 10",
+            f"{prog} batch meshes/ --hand armar3 --hand barrett --only 1,41,81 --out out/chosen",
+        ],
+    )
+    batch.add_argument(
+        "folder", help="folder of meshes (searched recursively), or pybullet:DIR, e.g. pybullet:random_urdfs"
+    )
     batch.add_argument("--hand", action="append", required=True, help="built-in hand name or spec file (repeatable)")
     batch.add_argument("--out", required=True, help="output folder: objects/*.parquet and trials/*.parquet")
     batch.add_argument("--only", default=None, help="comma-separated file stems to plan (e.g. 000,007)")
     batch.add_argument("--limit", type=int, default=None, help="plan only the first N meshes (natural order)")
-    batch.add_argument("--address", default=None,
-                       help="join this Ray cluster (host:port; default $RAY_ADDRESS, else an embedded local Ray)")
+    batch.add_argument(
+        "--address",
+        default=None,
+        help="join this Ray cluster (host:port; default $RAY_ADDRESS, else an embedded local Ray)",
+    )
     batch.add_argument("--workers", type=int, default=None, help="CPUs of the embedded Ray (default: every core)")
-    batch.add_argument("--scale", type=float, default=1.0, help="factor on every mesh's coordinates (default: 1; "
-                                                                 "0.015 for pybullet:random_urdfs, as their URDFs)")
+    batch.add_argument(
+        "--scale",
+        type=float,
+        default=1.0,
+        help="factor on every mesh's coordinates (default: 1; 0.015 for pybullet:random_urdfs, as their URDFs)",
+    )
     batch.add_argument("--seed", type=int, default=None, help="overrides the params seed (default: params seed)")
-    batch.add_argument("--spheres", type=int, default=None,
-                       help="random spheres per object and hand (default: params simulate.spheres_per_object)")
-    batch.add_argument("--params", default=None,
-                       help=PARAMS_HELP)
+    batch.add_argument(
+        "--spheres",
+        type=int,
+        default=None,
+        help="random spheres per object and hand (default: params simulate.spheres_per_object)",
+    )
+    batch.add_argument("--params", default=None, help=PARAMS_HELP)
     bench = _subcommand(
-        commands, "bench", help="benchmark medial_axis + mat (vs voronoi_poles), classify + candidates, "
-                                "grasp trials and the cost of recording them",
+        commands,
+        "bench",
+        help="benchmark medial_axis + mat (vs voronoi_poles), classify + candidates, "
+        "grasp trials and the cost of recording them",
         description="Time medial_axis + mat (against voronoi_poles), classify + candidates, the grasp trials,\n"
-                    "the cost of recording them and a small batch; prints one table each.",
-        examples=[f"{prog} bench --only medial --sizes 20000 --repeats 1",
-                  f"{prog} bench --json bench.json"])
+        "the cost of recording them and a small batch; prints one table each.",
+        examples=[f"{prog} bench --only medial --sizes 20000 --repeats 1", f"{prog} bench --json bench.json"],
+    )
     bench.add_argument("--json", default=None, help="also write the figures to this JSON file")
-    bench.add_argument("--sizes", default="20000,100000,200000",
-                       help="surface sample counts, comma-separated (default: %(default)s)")
+    bench.add_argument(
+        "--sizes", default="20000,100000,200000", help="surface sample counts, comma-separated (default: %(default)s)"
+    )
     bench.add_argument("--repeats", type=int, default=3, help="runs per case; the median is reported (default: 3)")
-    bench.add_argument("--trials", type=int, default=100,
-                       help="grasp trials per hand in the trial table (default: 100)")
-    bench.add_argument("--only", choices=("medial", "symmetry", "trials", "recording", "batch"), default=None,
-                       help="run one table (default: all)")
+    bench.add_argument(
+        "--trials", type=int, default=100, help="grasp trials per hand in the trial table (default: 100)"
+    )
+    bench.add_argument(
+        "--only",
+        choices=("medial", "symmetry", "trials", "recording", "batch"),
+        default=None,
+        help="run one table (default: all)",
+    )
     hands = _subcommand(
-        commands, "hands", help="render the built-in hands, or export one as URDF + spec",
+        commands,
+        "hands",
+        help="render the built-in hands, or export one as URDF + spec",
         description=f"Render the built-in hands, or export one as URDF + spec file.\n"
-                    f"built-in hands: {', '.join(HANDS)}",
-        examples=[f"{prog} hands --render pictures",
-                  f"{prog} hands --export parallel_jaw myhand   # then: plan ... --hand myhand/parallel_jaw.yaml"])
+        f"built-in hands: {', '.join(HANDS)}",
+        examples=[
+            f"{prog} hands --render pictures",
+            f"{prog} hands --export parallel_jaw myhand   # then: plan ... --hand myhand/parallel_jaw.yaml",
+        ],
+    )
     hands.add_argument("--render", metavar="DIR", help="write DIR/<hand>.png, open and closed on an object")
-    hands.add_argument("--export", nargs=2, metavar=("HAND", "DIR"),
-                       help="write DIR/HAND.urdf and DIR/HAND.yaml (a spec --hand accepts)")
+    hands.add_argument(
+        "--export",
+        nargs=2,
+        metavar=("HAND", "DIR"),
+        help="write DIR/HAND.urdf and DIR/HAND.yaml (a spec --hand accepts)",
+    )
     objects = _subcommand(
-        commands, "objects", help="params.yaml objects entries for every mesh in a folder",
+        commands,
+        "objects",
+        help="params.yaml objects entries for every mesh in a folder",
         description="List every mesh under a folder (searched recursively) as params.yaml objects entries, after\n"
-                    "the checks of the sample stage (closed surface, units, finite coordinates...): a mesh that\n"
-                    "fails them is skipped with a warning. Nested files are named by their path, parts joined\n"
-                    "with '-'. --write replaces the objects section of a params file and keeps\n"
-                    "report.figure_objects naming objects of it.",
-        examples=[f"{prog} objects meshes/ --scale 0.001 --write {PARAMS_FILE}   # then: dvc repro",
-                  f"{prog} objects benchmark/ --size 0.26 --only 1,41,81"])
+        "the checks of the sample stage (closed surface, units, finite coordinates...): a mesh that\n"
+        "fails them is skipped with a warning. Nested files are named by their path, parts joined\n"
+        "with '-'. --write replaces the objects section of a params file and keeps\n"
+        "report.figure_objects naming objects of it.",
+        examples=[
+            f"{prog} objects meshes/ --scale 0.001 --write {PARAMS_FILE}   # then: dvc repro",
+            f"{prog} objects benchmark/ --size 0.26 --only 1,41,81",
+        ],
+    )
     objects.add_argument("folder", help="folder of OBJ/STL/PLY/OFF/GLB meshes (searched recursively)")
     objects.add_argument("--scale", type=float, default=None, help="factor for every mesh (0.001 for mm; default: 1)")
-    objects.add_argument("--size", type=float, default=None,
-                         help="metres of each mesh's bounding-box diagonal, for unitless meshes")
+    objects.add_argument(
+        "--size", type=float, default=None, help="metres of each mesh's bounding-box diagonal, for unitless meshes"
+    )
     objects.add_argument("--only", default=None, help="comma-separated file stems to keep (e.g. 1,41,81)")
     objects.add_argument("--prefix", default="", help="put before each object name")
-    objects.add_argument("--write", metavar="PARAMS", default=None,
-                         help="replace the objects section of this params file (else print the entries); "
-                              "its sample section and scales set the checks")
+    objects.add_argument(
+        "--write",
+        metavar="PARAMS",
+        default=None,
+        help="replace the objects section of this params file (else print the entries); "
+        "its sample section and scales set the checks",
+    )
     args = parser.parse_args(argv)
     if args.command == "objects":
         return _objects(args)
@@ -133,8 +197,13 @@ def main(argv=None):
         return _hands(args, hands)
     from .bench import run_bench
 
-    run_bench(sizes=[int(size) for size in args.sizes.split(",")], repeats=args.repeats, json_path=args.json,
-              trials=args.trials, only=args.only)
+    run_bench(
+        sizes=[int(size) for size in args.sizes.split(",")],
+        repeats=args.repeats,
+        json_path=args.json,
+        trials=args.trials,
+        only=args.only,
+    )
 
 
 def _hands(args, parser):
@@ -156,17 +225,24 @@ def _objects(args):
     from .catalogue import entry_lines, figure_objects_following, folder_entries, replace_objects
 
     params_path = args.write or (PARAMS_FILE if Path(PARAMS_FILE).is_file() else None)
-    entries = folder_entries(args.folder, prefix=args.prefix, scale=args.scale, size=args.size,
-                             only=args.only.split(",") if args.only else None, params_path=params_path,
-                             warn=lambda message: print(f"warning: {message}", file=sys.stderr))
+    entries = folder_entries(
+        args.folder,
+        prefix=args.prefix,
+        scale=args.scale,
+        size=args.size,
+        only=args.only.split(",") if args.only else None,
+        params_path=params_path,
+        warn=lambda message: print(f"warning: {message}", file=sys.stderr),
+    )
     if not args.write:
         print("\n".join(["objects:"] + [f"  {line}" for line in entry_lines(entries)]))
         return
     text = replace_objects(Path(args.write).read_text(), entries)
     text, figures = figure_objects_following(text, list(entries), source=args.write)
     atomic_write(args.write, lambda stream: stream.write(text.encode()))
-    print(f"wrote {len(entries)} objects into {args.write} (report.figure_objects: {', '.join(figures)}): "
-          "run `dvc repro`")
+    print(
+        f"wrote {len(entries)} objects into {args.write} (report.figure_objects: {', '.join(figures)}): run `dvc repro`"
+    )
 
 
 def _command_params(args):
@@ -176,9 +252,11 @@ def _command_params(args):
 
     params_path = args.params or (PARAMS_FILE if Path(PARAMS_FILE).is_file() else None)
     params = load_params(params_path) if params_path else Params()
-    overrides = {key: value for key, value in (("spheres_per_object", args.spheres),
-                                               ("baseline_trials", getattr(args, "baseline", None)))
-                 if value is not None}
+    overrides = {
+        key: value
+        for key, value in (("spheres_per_object", args.spheres), ("baseline_trials", getattr(args, "baseline", None)))
+        if value is not None
+    }
     if overrides:
         params = dataclasses.replace(params, simulate=dataclasses.replace(params.simulate, **overrides))
     return params
@@ -192,15 +270,26 @@ def _batch(args):
     params = _command_params(args)
     for hand in args.hand:
         get_hand(hand)  # an unknown hand fails here, in one line, before Ray starts
-    meshes = select_meshes(find_meshes(args.folder), folder=args.folder,
-                           only=args.only.split(",") if args.only else None, limit=args.limit)
+    meshes = select_meshes(
+        find_meshes(args.folder), folder=args.folder, only=args.only.split(",") if args.only else None, limit=args.limit
+    )
     print(f"batch: {len(meshes)} meshes from {args.folder} -> {args.out}", file=sys.stderr)
-    counts = run_batch(meshes, args.out, hands=args.hand, params=params, scale=args.scale, seed=args.seed,
-                       address=args.address, workers=args.workers,
-                       progress=lambda line: print(line, file=sys.stderr, flush=True))
-    print(f"batch {args.out}: {counts['ok']} ok, {counts['error']} bad meshes, {counts['failed']} failed, "
-          f"{counts['skipped']} skipped (done before) in {counts['seconds']:.1f} s "
-          f"(Ray start {counts['ray_start_s']:.1f} s); read: pd.read_parquet('{args.out}/objects')")
+    counts = run_batch(
+        meshes,
+        args.out,
+        hands=args.hand,
+        params=params,
+        scale=args.scale,
+        seed=args.seed,
+        address=args.address,
+        workers=args.workers,
+        progress=lambda line: print(line, file=sys.stderr, flush=True),
+    )
+    print(
+        f"batch {args.out}: {counts['ok']} ok, {counts['error']} bad meshes, {counts['failed']} failed, "
+        f"{counts['skipped']} skipped (done before) in {counts['seconds']:.1f} s "
+        f"(Ray start {counts['ray_start_s']:.1f} s); read: pd.read_parquet('{args.out}/objects')"
+    )
     if counts["failed"]:
         raise SystemExit(1)  # failed objects run again next time; bad meshes (error rows) do not
 
@@ -215,12 +304,20 @@ def _plan(args):
     hands = args.hand or list(params.candidates.hands)
     with progress_bar("simulate") as trial_progress, warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("default")  # each distinct warning once, as the DVC stages log them
-        artefacts, timings = run_chain(args.mesh, params, scale=args.scale, seed=seed, hands=hands,
-                                       simulate=not args.no_simulate, workers=args.workers,
-                                       progress=lambda line: print(line, file=sys.stderr),
-                                       trial_progress=trial_progress)
-    result = summary(artefacts, timings, source=args.mesh, scale=args.scale, seed=seed, hands=hands,
-                     warnings=warning_lines(caught))
+        artefacts, timings = run_chain(
+            args.mesh,
+            params,
+            scale=args.scale,
+            seed=seed,
+            hands=hands,
+            simulate=not args.no_simulate,
+            workers=args.workers,
+            progress=lambda line: print(line, file=sys.stderr),
+            trial_progress=trial_progress,
+        )
+    result = summary(
+        artefacts, timings, source=args.mesh, scale=args.scale, seed=seed, hands=hands, warnings=warning_lines(caught)
+    )
     for line in result["warnings"]:
         print(f"warning: {line}", file=sys.stderr)
     write_plan(args.out, artefacts, result)
@@ -229,8 +326,15 @@ def _plan(args):
         from .recording import record_chain
 
         name = Path(args.mesh.split(":")[-1]).stem or "object"
-        record_chain(Path(args.out) / "recording.rrd", Path(args.out) / "log.mcap", artefacts, result, name=name,
-                     hands=[get_hand(hand) for hand in hands], settings=params.simulate.world_settings())
+        record_chain(
+            Path(args.out) / "recording.rrd",
+            Path(args.out) / "log.mcap",
+            artefacts,
+            result,
+            name=name,
+            hands=[get_hand(hand) for hand in hands],
+            settings=params.simulate.world_settings(),
+        )
     brief = {**result["counts"], "classes": result["classes"], "candidates": result["candidates"]}
     if "trials" in result:
         brief.update({key: result[key] for key in ("trials", "force_closure_rate", "mean_epsilon", "outcomes")})

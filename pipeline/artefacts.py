@@ -130,8 +130,11 @@ class _Artefact:
     def __post_init__(self):
         for name, (dtype, columns) in self.ARRAYS.items():
             value = np.asarray(getattr(self, name), dtype=dtype)
-            shape_ok = value.ndim == 1 if columns is None else (
-                value.ndim == 2 and (columns == 0 or value.shape[1] == columns))
+            shape_ok = (
+                value.ndim == 1
+                if columns is None
+                else (value.ndim == 2 and (columns == 0 or value.shape[1] == columns))
+            )
             if not shape_ok:
                 wanted = "(n,)" if columns is None else f"(n, {columns or 'k'})"
                 raise ArtefactError(f"{self.KIND}.{name}: expected shape {wanted}, got {value.shape}")
@@ -171,8 +174,7 @@ class _Artefact:
             raise ArtefactError(f"{path}: schema version differs from {SCHEMA_VERSION}; rerun its stage")
         names = {f.name for f in dataclasses.fields(cls)}
         if set(contents) | set(meta) != names:
-            raise ArtefactError(f"{path}: fields {sorted(set(contents) | set(meta))} "
-                                f"do not match {cls.KIND}")
+            raise ArtefactError(f"{path}: fields {sorted(set(contents) | set(meta))} do not match {cls.KIND}")
         return cls(**contents, **meta)
 
 
@@ -190,8 +192,13 @@ class SurfaceSamples(_Artefact):
     key: str
 
     KIND = "surface_samples"
-    ARRAYS = {"points": (np.float64, 3), "normals": (np.float64, 3), "face_index": (np.int64, None),
-              "vertices": (np.float64, 3), "faces": (np.int64, 3)}
+    ARRAYS = {
+        "points": (np.float64, 3),
+        "normals": (np.float64, 3),
+        "face_index": (np.int64, None),
+        "vertices": (np.float64, 3),
+        "faces": (np.int64, 3),
+    }
 
 
 @dataclass(frozen=True)
@@ -206,8 +213,12 @@ class MedialAxis(_Artefact):
     key: str
 
     KIND = "medial_axis"
-    ARRAYS = {"centers": (np.float64, 3), "radii": (np.float64, None),
-              "sample_index": (np.int64, None), "contacts": (np.int64, 0)}
+    ARRAYS = {
+        "centers": (np.float64, 3),
+        "radii": (np.float64, None),
+        "sample_index": (np.int64, None),
+        "contacts": (np.int64, 0),
+    }
 
 
 @dataclass(frozen=True)
@@ -221,8 +232,12 @@ class MedialSpheres(_Artefact):
     key: str
 
     KIND = "medial_spheres"
-    ARRAYS = {"centers": (np.float64, 3), "radii": (np.float64, None),
-              "contacts": (np.int64, 0), "object_angle": (np.float64, None)}
+    ARRAYS = {
+        "centers": (np.float64, 3),
+        "radii": (np.float64, None),
+        "contacts": (np.int64, 0),
+        "object_angle": (np.float64, None),
+    }
 
     def __len__(self):
         return len(self.radii)
@@ -243,9 +258,15 @@ class SphereGrid(_Artefact):
     key: str
 
     KIND = "sphere_grid"
-    ARRAYS = {"centers": (np.float64, 3), "radii": (np.float64, None), "object_angle": (np.float64, None),
-              "origin": (np.float64, None), "dims": (np.int64, None), "order": (np.int64, None),
-              "cell_start": (np.int64, None)}
+    ARRAYS = {
+        "centers": (np.float64, 3),
+        "radii": (np.float64, None),
+        "object_angle": (np.float64, None),
+        "origin": (np.float64, None),
+        "dims": (np.int64, None),
+        "order": (np.int64, None),
+        "cell_start": (np.int64, None),
+    }
 
     def __len__(self):
         return len(self.radii)

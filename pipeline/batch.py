@@ -32,10 +32,23 @@ from .artefacts import SCHEMA_VERSION, content_key, write_table
 from .errors import BadInputError, PipelineError
 from .objects import mesh_files, source_key
 
-SUMMARY_COLUMNS = {"object": str, "status": str, "reason": str, "key": str, "source": str, "samples": "Int64",
-                   "medial_spheres": "Int64", "reduced_spheres": "Int64", "candidates": "Int64", "mat_trials": "Int64",
-                   "force_closure_rate": float, "mean_epsilon": float, "baseline_trials": "Int64",
-                   "baseline_force_closure_rate": float, "seconds": float}
+SUMMARY_COLUMNS = {
+    "object": str,
+    "status": str,
+    "reason": str,
+    "key": str,
+    "source": str,
+    "samples": "Int64",
+    "medial_spheres": "Int64",
+    "reduced_spheres": "Int64",
+    "candidates": "Int64",
+    "mat_trials": "Int64",
+    "force_closure_rate": float,
+    "mean_epsilon": float,
+    "baseline_trials": "Int64",
+    "baseline_force_closure_rate": float,
+    "seconds": float,
+}
 DONE = ("ok", "error")  # outcomes that the same key would give again; "failed" is retried
 
 
@@ -64,15 +77,20 @@ def find_meshes(folder):
 
 def object_key(path, *, scale, seed, hands, params):
     """Content key of one object's batch run: the mesh bytes and everything the chain reads."""
-    used = {section: dataclasses.asdict(getattr(params, section))
-            for section in ("sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate")}
+    used = {
+        section: dataclasses.asdict(getattr(params, section))
+        for section in ("sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate")
+    }
     used["candidates"].pop("hands")
     used["simulate"].pop("workers")  # results do not depend on it
     from .hands import get_hand
 
     specs = [dataclasses.asdict(get_hand(hand)) for hand in hands]  # an edited spec file changes the key
-    return content_key("batch", {"scale": scale, "seed": seed, "hands": specs, "params": used,
-                                 "schema": SCHEMA_VERSION}, source_key(str(path)))
+    return content_key(
+        "batch",
+        {"scale": scale, "seed": seed, "hands": specs, "params": used, "schema": SCHEMA_VERSION},
+        source_key(str(path)),
+    )
 
 
 def plan_object(name, path, *, scale, seed, hands, params):
@@ -85,19 +103,27 @@ def plan_object(name, path, *, scale, seed, hands, params):
     start = time.perf_counter()
     row = {"object": name, "source": str(path)}
     try:
-        artefacts, _ = run_chain(str(path), params, scale=scale, seed=seed, hands=list(hands), simulate=True,
-                                 workers=1)
+        artefacts, _ = run_chain(str(path), params, scale=scale, seed=seed, hands=list(hands), simulate=True, workers=1)
     except PipelineError as err:
         return {**row, "status": "error", "reason": str(err), "seconds": time.perf_counter() - start}, None
     trials = artefacts["trials"]
     result = summary(trials)
     mat, baseline = result, result["baseline"]  # no trials: NaN rates, not 0 % (trials.summarise)
 
-    row.update(status="ok", reason="", samples=len(artefacts["sample"].points), medial_spheres=len(artefacts["mat"]),
-               reduced_spheres=len(artefacts["classify"]), candidates=len(artefacts["candidates"]),
-               mat_trials=mat["trials"], force_closure_rate=mat["force_closure_rate"],
-               mean_epsilon=mat["mean_epsilon"], baseline_trials=baseline["trials"],
-               baseline_force_closure_rate=baseline["force_closure_rate"], seconds=time.perf_counter() - start)
+    row.update(
+        status="ok",
+        reason="",
+        samples=len(artefacts["sample"].points),
+        medial_spheres=len(artefacts["mat"]),
+        reduced_spheres=len(artefacts["classify"]),
+        candidates=len(artefacts["candidates"]),
+        mat_trials=mat["trials"],
+        force_closure_rate=mat["force_closure_rate"],
+        mean_epsilon=mat["mean_epsilon"],
+        baseline_trials=baseline["trials"],
+        baseline_force_closure_rate=baseline["force_closure_rate"],
+        seconds=time.perf_counter() - start,
+    )
     if not len(trials):  # no candidate fits a hand: no trials file (an empty table would have other column types)
         return row, None
     return row, trials.assign(object=name)[["object", *trials.columns]]
@@ -147,8 +173,9 @@ def start_ray(address=None, workers=None):
     return int(ray.cluster_resources().get("CPU", 1))
 
 
-def run_batch(meshes, out, *, hands, params, scale=1.0, seed=None, address=None, workers=None, progress=None,
-              task=plan_object):
+def run_batch(
+    meshes, out, *, hands, params, scale=1.0, seed=None, address=None, workers=None, progress=None, task=plan_object
+):
     """Plan every mesh of ``meshes`` (``[(name, path)]``, see :func:`find_meshes`) into ``out``.
 
     Objects already done with the same key are skipped without starting Ray. Returns a dict:
@@ -163,8 +190,20 @@ def run_batch(meshes, out, *, hands, params, scale=1.0, seed=None, address=None,
     counts = {"skipped": len(meshes) - len(todo), "ok": 0, "error": 0, "failed": 0, "ray_start_s": 0.0}
     start = time.perf_counter()
     if todo:
-        counts["ray_start_s"] = _run_on_ray(todo, keys, out, counts, task, hands=hands, params=params, scale=scale,
-                                            seed=seed, address=address, workers=workers, progress=progress)
+        counts["ray_start_s"] = _run_on_ray(
+            todo,
+            keys,
+            out,
+            counts,
+            task,
+            hands=hands,
+            params=params,
+            scale=scale,
+            seed=seed,
+            address=address,
+            workers=workers,
+            progress=progress,
+        )
     counts["seconds"] = time.perf_counter() - start
     return counts
 
@@ -197,9 +236,11 @@ def _run_on_ray(todo, keys, out, counts, function, *, hands, params, scale, seed
             if progress:
                 finished = counts["ok"] + counts["error"] + counts["failed"]
                 rate = 60 * finished / max(time.perf_counter() - begun, 1e-9)
-                progress(f"{finished}/{len(todo)} objects: {counts['ok']} ok, {counts['error']} bad mesh, "
-                         f"{counts['failed']} failed, {rate:.1f} per minute; {name}: {row['status']}"
-                         + (f" ({row['reason']})" if row.get("reason") else ""))
+                progress(
+                    f"{finished}/{len(todo)} objects: {counts['ok']} ok, {counts['error']} bad mesh, "
+                    f"{counts['failed']} failed, {rate:.1f} per minute; {name}: {row['status']}"
+                    + (f" ({row['reason']})" if row.get("reason") else "")
+                )
     finally:
         ray.shutdown()
     return ray_start
@@ -215,8 +256,11 @@ def failure(err):
         lines = str(cause).strip().splitlines()
         return f"{type(cause).__name__}: {lines[-1] if lines else ''}"[:500]
     lines = str(err).strip().splitlines()
-    retried = " (after one retry)" if isinstance(err, (ray.exceptions.WorkerCrashedError,
-                                                       ray.exceptions.OutOfMemoryError)) else ""
+    retried = (
+        " (after one retry)"
+        if isinstance(err, (ray.exceptions.WorkerCrashedError, ray.exceptions.OutOfMemoryError))
+        else ""
+    )
     return f"{type(err).__name__}{retried}: {lines[0] if lines else ''}"[:500]
 
 

@@ -32,10 +32,13 @@ CAPSULE_RADIUS, CAPSULE_HALF_LENGTH = 0.02, 0.05
 
 SHAPES = {
     "box": (dict(extents=list(2 * BOX_HALF)), lambda c: np.min(BOX_HALF - np.abs(c), axis=1), BOX_HALF[2]),
-    "capsule": (dict(radius=CAPSULE_RADIUS, height=2 * CAPSULE_HALF_LENGTH),
-                lambda c: CAPSULE_RADIUS - np.hypot(np.hypot(c[:, 0], c[:, 1]),
-                                                    np.maximum(np.abs(c[:, 2]) - CAPSULE_HALF_LENGTH, 0)),
-                CAPSULE_RADIUS),
+    "capsule": (
+        dict(radius=CAPSULE_RADIUS, height=2 * CAPSULE_HALF_LENGTH),
+        lambda c: (
+            CAPSULE_RADIUS - np.hypot(np.hypot(c[:, 0], c[:, 1]), np.maximum(np.abs(c[:, 2]) - CAPSULE_HALF_LENGTH, 0))
+        ),
+        CAPSULE_RADIUS,
+    ),
 }
 
 
@@ -85,25 +88,42 @@ def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, trial
 def run_medial_bench(*, sizes=(20000, 100000, 200000), repeats=3, out=print):
     """medial_axis + mat, both methods, on a box and a capsule; returns the rows."""
     rows = []
-    out(f"{'shape':8} {'samples':>8} {'method':15} {'median s':>9} {'peak MiB':>9} {'spheres':>8} "
-        f"{'radius err (median, p95)':>26}")
+    out(
+        f"{'shape':8} {'samples':>8} {'method':15} {'median s':>9} {'peak MiB':>9} {'spheres':>8} "
+        f"{'radius err (median, p95)':>26}"
+    )
     for shape, (keywords, true_distance, scale) in SHAPES.items():
         for count in sizes:
-            surface = sample_object(f"primitive:{shape}", shape=keywords, rng=np.random.default_rng(0),
-                                    source_key=shape, **{**vars(SampleParams()), "count": count})
+            surface = sample_object(
+                f"primitive:{shape}",
+                shape=keywords,
+                rng=np.random.default_rng(0),
+                source_key=shape,
+                **{**vars(SampleParams()), "count": count},
+            )
             for method in ("shrinking_ball", "voronoi_poles"):
                 seconds, peak, spheres = _measure(surface, method, repeats)
                 error = np.abs(spheres.radii - true_distance(spheres.centers)) / scale
-                row = dict(shape=shape, samples=count, method=method, median_s=round(seconds, 4),
-                           peak_mib=round(peak / 2**20, 1), spheres=len(spheres),
-                           radius_error_median=float(np.median(error)),
-                           radius_error_p95=float(np.percentile(error, 95)))
+                row = dict(
+                    shape=shape,
+                    samples=count,
+                    method=method,
+                    median_s=round(seconds, 4),
+                    peak_mib=round(peak / 2**20, 1),
+                    spheres=len(spheres),
+                    radius_error_median=float(np.median(error)),
+                    radius_error_p95=float(np.percentile(error, 95)),
+                )
                 rows.append(row)
-                out(f"{shape:8} {count:8d} {method:15} {seconds:9.3f} {row['peak_mib']:9.1f} {len(spheres):8d} "
-                    f"{row['radius_error_median']:12.2e} {row['radius_error_p95']:12.2e}")
+                out(
+                    f"{shape:8} {count:8d} {method:15} {seconds:9.3f} {row['peak_mib']:9.1f} {len(spheres):8d} "
+                    f"{row['radius_error_median']:12.2e} {row['radius_error_p95']:12.2e}"
+                )
             masb, poles = rows[-2], rows[-1]
-            out(f"{'':8} {'':8} ratio poles/masb: time {poles['median_s'] / masb['median_s']:.1f}x, "
-                f"median radius error {poles['radius_error_median'] / max(masb['radius_error_median'], 1e-18):.1f}x")
+            out(
+                f"{'':8} {'':8} ratio poles/masb: time {poles['median_s'] / masb['median_s']:.1f}x, "
+                f"median radius error {poles['radius_error_median'] / max(masb['radius_error_median'], 1e-18):.1f}x"
+            )
     return rows
 
 
@@ -119,10 +139,16 @@ def run_symmetry_bench(*, sphere_counts=(10000, 100000), repeats=3, out=print):
     hands = [HANDS[name] for name in CandidatesParams().hands]
     for shape, keywords in shapes.items():
         for wanted in sphere_counts:
-            surface = sample_object(f"primitive:{shape}", shape=keywords, rng=np.random.default_rng(0),
-                                    source_key=shape, **{**vars(SampleParams()), "count": int(wanted * 1.03)})
-            grid = sphere_grid.build(reconstruct(surface, medial_axis(surface, **vars(MedialAxisParams())),
-                                                 **vars(MatParams())))
+            surface = sample_object(
+                f"primitive:{shape}",
+                shape=keywords,
+                rng=np.random.default_rng(0),
+                source_key=shape,
+                **{**vars(SampleParams()), "count": int(wanted * 1.03)},
+            )
+            grid = sphere_grid.build(
+                reconstruct(surface, medial_axis(surface, **vars(MedialAxisParams())), **vars(MatParams()))
+            )
             times = []
             for _ in range(repeats):
                 start = time.perf_counter()
@@ -130,11 +156,19 @@ def run_symmetry_bench(*, sphere_counts=(10000, 100000), repeats=3, out=print):
                 table = generate_for_hands(symmetry, hands)
                 times.append(time.perf_counter() - start)
             seconds = float(np.median(times))
-            row = dict(shape=shape, spheres=len(grid), selected=len(symmetry), median_s=round(seconds, 4),
-                       us_per_sphere=round(1e6 * seconds / len(grid), 2), candidates=len(table))
+            row = dict(
+                shape=shape,
+                spheres=len(grid),
+                selected=len(symmetry),
+                median_s=round(seconds, 4),
+                us_per_sphere=round(1e6 * seconds / len(grid), 2),
+                candidates=len(table),
+            )
             rows.append(row)
-            out(f"{shape:8} {len(grid):8d} {len(symmetry):8d} {seconds:9.3f} {row['us_per_sphere']:10.2f} "
-                f"{len(table):10d}")
+            out(
+                f"{shape:8} {len(grid):8d} {len(symmetry):8d} {seconds:9.3f} {row['us_per_sphere']:10.2f} "
+                f"{len(table):10d}"
+            )
     out("paper: 10-100 ms per sphere (Python, 2011); target <= 10 us per sphere")
     return rows
 
@@ -151,8 +185,9 @@ def trial_bench_surface():
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "duck.ply"
         mesh.export(path)
-        return sample_object(str(path), rng=np.random.default_rng(0), source_key="bench-duck", **vars(SampleParams())), \
-            len(mesh.faces)
+        return sample_object(
+            str(path), rng=np.random.default_rng(0), source_key="bench-duck", **vars(SampleParams())
+        ), len(mesh.faces)
 
 
 def run_trial_bench(*, trials=100, reference_trials=30, out=print):
@@ -170,8 +205,10 @@ def run_trial_bench(*, trials=100, reference_trials=30, out=print):
     cores = default_workers(0)
     settings = SimulateParams().world_settings()
     out(f"grasp trials on the duck ({faces} triangles), {trials} random MAT candidates per hand; all cores = {cores}")
-    out(f"{'hand':13} {'old /s':>7} {'new /s':>7} {'ratio':>6} {'new all':>8}  new: s in place/retreat/approach/"
-        "closing/contacts; outcomes new (old)")
+    out(
+        f"{'hand':13} {'old /s':>7} {'new /s':>7} {'ratio':>6} {'new all':>8}  new: s in place/retreat/approach/"
+        "closing/contacts; outcomes new (old)"
+    )
     rows = []
     for name, hand in HANDS.items():
         table = generate(symmetry, hand)
@@ -179,8 +216,11 @@ def run_trial_bench(*, trials=100, reference_trials=30, out=print):
         targets = (vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), list(table.preshape))
         engine = GraspEngine(surface, hand, **settings)
         start = time.perf_counter()
-        new = [result for first in range(0, len(table), CHUNK)
-               for result in engine.run(*(values[first:first + CHUNK] for values in targets))]
+        new = [
+            result
+            for first in range(0, len(table), CHUNK)
+            for result in engine.run(*(values[first : first + CHUNK] for values in targets))
+        ]
         new_rate = len(table) / (time.perf_counter() - start)
         old, old_rate = None, float("nan")
         if hand.urdf is None:  # the old engine takes only box-link hands
@@ -196,14 +236,25 @@ def run_trial_bench(*, trials=100, reference_trials=30, out=print):
         outcomes = Counter(result.outcome for result in new)
         confusion = Counter((result.outcome, before.outcome) for result, before in zip(new, old)) if old else {}
         share = "/".join(f"{seconds:.1f}" for seconds in engine.seconds.values())
-        row = dict(hand=name, trials=len(table), old_per_s=round(old_rate, 1), new_per_s=round(new_rate, 1),
-                   ratio=round(new_rate / old_rate, 2) if old else None, new_all_cores_per_s=round(all_rate, 1),
-                   seconds=engine.seconds, outcomes=dict(outcomes),
-                   confusion={f"{a} | {b}": n for (a, b), n in sorted(confusion.items())})
+        row = dict(
+            hand=name,
+            trials=len(table),
+            old_per_s=round(old_rate, 1),
+            new_per_s=round(new_rate, 1),
+            ratio=round(new_rate / old_rate, 2) if old else None,
+            new_all_cores_per_s=round(all_rate, 1),
+            seconds=engine.seconds,
+            outcomes=dict(outcomes),
+            confusion={f"{a} | {b}": n for (a, b), n in sorted(confusion.items())},
+        )
         rows.append(row)
-        out(f"{name:13} {old_rate:7.1f} {new_rate:7.1f} {row['ratio'] or float('nan'):6.2f} {all_rate:8.1f}  {share}; "
-            + ", ".join(f"{key} {value}" + (f" ({sum(n for (a, b), n in confusion.items() if b == key)})" if old else "")
-                        for key, value in sorted(outcomes.items())))
+        out(
+            f"{name:13} {old_rate:7.1f} {new_rate:7.1f} {row['ratio'] or float('nan'):6.2f} {all_rate:8.1f}  {share}; "
+            + ", ".join(
+                f"{key} {value}" + (f" ({sum(n for (a, b), n in confusion.items() if b == key)})" if old else "")
+                for key, value in sorted(outcomes.items())
+            )
+        )
         if old:
             out("    new | old: " + ", ".join(f"{a} | {b}: {n}" for (a, b), n in sorted(confusion.items())))
         reference = ReferenceEngine(surface, hand, **settings)
@@ -213,10 +264,15 @@ def run_trial_bench(*, trials=100, reference_trials=30, out=print):
         reference.close()
         against = Counter((result.outcome, other.outcome) for result, other in zip(new, checked))
         agree = sum(n for (a, b), n in against.items() if a == b)
-        row.update(reference_per_s=round(reference_rate, 2), reference_agreement=round(agree / len(checked), 3),
-                   reference_confusion={f"{a} | {b}": n for (a, b), n in sorted(against.items())})
-        out(f"    new | reference (pybullet, {reference_rate:.1f} trials/s): agree {agree}/{len(checked)}; "
-            + ", ".join(f"{a} | {b}: {n}" for (a, b), n in sorted(against.items())))
+        row.update(
+            reference_per_s=round(reference_rate, 2),
+            reference_agreement=round(agree / len(checked), 3),
+            reference_confusion={f"{a} | {b}": n for (a, b), n in sorted(against.items())},
+        )
+        out(
+            f"    new | reference (pybullet, {reference_rate:.1f} trials/s): agree {agree}/{len(checked)}; "
+            + ", ".join(f"{a} | {b}: {n}" for (a, b), n in sorted(against.items()))
+        )
     out("paper: 0.5 s per trial (one core, 2011); target >= 300 trials/s per core")
     return rows
 
@@ -247,20 +303,30 @@ def run_recording_bench(*, trials=500, repeats=3, out=print):
 
     start = time.perf_counter()
     surface, faces = trial_bench_surface()
-    grid = sphere_grid.build(reconstruct(surface, medial_axis(surface, **vars(MedialAxisParams())), **vars(MatParams())))
+    grid = sphere_grid.build(
+        reconstruct(surface, medial_axis(surface, **vars(MedialAxisParams())), **vars(MatParams()))
+    )
     symmetry = classify(grid, **vars(ClassifyParams()))
     geometry = time.perf_counter() - start
     bare = median_seconds(lambda: subprocess.run([sys.executable, "-c", "pass"], check=True), repeats)
     imported = median_seconds(lambda: subprocess.run([sys.executable, "-c", "import rerun"], check=True), repeats)
     importing = max(imported - bare, 0.0)
-    out(f"recording cost on the duck ({faces} triangles, {len(grid)} medial spheres): {trials} MAT trials per hand, "
-        f"one core; recording = median of {repeats}")
+    out(
+        f"recording cost on the duck ({faces} triangles, {len(grid)} medial spheres): {trials} MAT trials per hand, "
+        f"one core; recording = median of {repeats}"
+    )
     out(f"{'what':34} {'work s':>8} {'record s':>9} {'ratio':>7}")
     rows = []
 
     def row(name, work, recorded):
-        rows.append(dict(what=name, work_s=round(work, 3), record_s=round(recorded, 3),
-                         ratio=round(recorded / work, 3) if work else None))
+        rows.append(
+            dict(
+                what=name,
+                work_s=round(work, 3),
+                record_s=round(recorded, 3),
+                ratio=round(recorded / work, 3) if work else None,
+            )
+        )
         out(f"{name:34} {work:8.2f} {recorded:9.3f} " + (f"{100 * recorded / work:6.1f}%" if work else ""))
 
     with tempfile.TemporaryDirectory() as folder:
@@ -279,8 +345,9 @@ def run_recording_bench(*, trials=500, repeats=3, out=print):
             candidates = generate(symmetry, hand)
             table = candidates.sample(min(trials, len(candidates)), random_state=0).reset_index(drop=True)
             start = time.perf_counter()
-            results, contacts = simulate(surface, table, [hand], spheres_per_object=len(table), baseline_trials=0,
-                                         workers=1)
+            results, contacts = simulate(
+                surface, table, [hand], spheres_per_object=len(table), baseline_trials=0, workers=1
+            )
             simulated = time.perf_counter() - start
 
             def record_grasps():
@@ -293,8 +360,10 @@ def run_recording_bench(*, trials=500, repeats=3, out=print):
             row(f"simulate {name}: grasps.rrd + MCAP", simulated, median_seconds(record_grasps, repeats))
             work, recorded = work + simulated, recorded + importing + rows[-1]["record_s"]
         row("the object, every hand", work, recorded)
-    out("target: recording adds <= 20 % to a run. Not counted here: the stage processes' own start-up, "
-        "which `dvc repro` also pays (the report's time table gives the whole run's figure)")
+    out(
+        "target: recording adds <= 20 % to a run. Not counted here: the stage processes' own start-up, "
+        "which `dvc repro` also pays (the report's time table gives the whole run's figure)"
+    )
     return rows
 
 
@@ -312,8 +381,10 @@ def run_batch_bench(*, objects=20, hands=("armar3", "barrett", "parallel_jaw"), 
     params = Params()
     params = dataclasses.replace(params, simulate=dataclasses.replace(params.simulate, spheres_per_object=spheres))
     meshes = find_meshes("pybullet:random_urdfs")[:objects]
-    out(f"batch on {len(meshes)} random_urdfs objects x {len(hands)} hands, {spheres} spheres per object and hand "
-        f"(default params otherwise), embedded Ray, one run each")
+    out(
+        f"batch on {len(meshes)} random_urdfs objects x {len(hands)} hands, {spheres} spheres per object and hand "
+        f"(default params otherwise), embedded Ray, one run each"
+    )
     out(f"{'workers':>7} {'ray start s':>11} {'work s':>7} {'objects/min':>11} {'efficiency':>10}")
     rows = []
     for workers in (1, 2):
@@ -322,14 +393,25 @@ def run_batch_bench(*, objects=20, hands=("armar3", "barrett", "parallel_jaw"), 
         work = counts["seconds"] - counts["ray_start_s"]
         rate = 60 * len(meshes) / work
         efficiency = rate / (workers * rows[0]["objects_per_min"]) if rows else 1.0
-        rows.append(dict(workers=workers, ray_start_s=round(counts["ray_start_s"], 2), work_s=round(work, 2),
-                         objects_per_min=round(rate, 2), efficiency=round(efficiency, 3), ok=counts["ok"],
-                         error=counts["error"], failed=counts["failed"]))
+        rows.append(
+            dict(
+                workers=workers,
+                ray_start_s=round(counts["ray_start_s"], 2),
+                work_s=round(work, 2),
+                objects_per_min=round(rate, 2),
+                efficiency=round(efficiency, 3),
+                ok=counts["ok"],
+                error=counts["error"],
+                failed=counts["failed"],
+            )
+        )
         out(f"{workers:7d} {counts['ray_start_s']:11.1f} {work:7.1f} {rate:11.1f} {efficiency:10.2f}")
     core_seconds = rows[0]["work_s"] / len(meshes)
     efficiency = min(rows[-1]["efficiency"], 1.0)  # above 1 is noise; do not project a speed-up
     for cores, name in ((16, "16 cores"), (64, "4 x 16 cores")):
         minutes = 1000 * core_seconds / (cores * efficiency) / 60
-        out(f"projection: 1000 objects x {len(hands)} hands on {name}: {minutes:.1f} min + Ray start "
-            f"({core_seconds:.2f} core-s per object, efficiency {efficiency:.2f})")
+        out(
+            f"projection: 1000 objects x {len(hands)} hands on {name}: {minutes:.1f} min + Ray start "
+            f"({core_seconds:.2f} core-s per object, efficiency {efficiency:.2f})"
+        )
     return rows

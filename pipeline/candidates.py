@@ -28,9 +28,23 @@ IDS_PER_SPHERE = 64
 _ISOLATED_APPROACH = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
 _ISOLATED_ORIENT = np.array([[0, 0, 1], [0, 0, 1], [0, 0, 1], [0, 0, 1], [1, 0, 0], [1, 0, 0]], float)
 
-COLUMNS = ["hand", "id", "sphere_index", "sphere_class", "diameter_m", "preshape",
-           "grasp_x", "grasp_y", "grasp_z", "approach_x", "approach_y", "approach_z",
-           "orient_x", "orient_y", "orient_z"]
+COLUMNS = [
+    "hand",
+    "id",
+    "sphere_index",
+    "sphere_class",
+    "diameter_m",
+    "preshape",
+    "grasp_x",
+    "grasp_y",
+    "grasp_z",
+    "approach_x",
+    "approach_y",
+    "approach_z",
+    "orient_x",
+    "orient_y",
+    "orient_z",
+]
 
 
 def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, preshape=None):
@@ -60,8 +74,9 @@ def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, 
 
     tube = np.flatnonzero(graspable & np.isin(class_id, (AXIS, PAIR)))
     angle = 2.0 * np.pi * np.arange(approach_directions) / approach_directions
-    approach.append((np.cos(angle)[None, :, None] * e2[tube, None] + np.sin(angle)[None, :, None] * e3[tube, None])
-                    .reshape(-1, 3))
+    approach.append(
+        (np.cos(angle)[None, :, None] * e2[tube, None] + np.sin(angle)[None, :, None] * e3[tube, None]).reshape(-1, 3)
+    )
     orient.append(np.repeat(e1[tube], approach_directions, axis=0))
     rows.append(np.repeat(tube, approach_directions))
 
@@ -79,8 +94,11 @@ def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, 
 
     row, approach, orient = np.concatenate(rows), np.concatenate(approach), np.concatenate(orient)
     if flipped_candidates:
-        row, approach, orient = np.concatenate([row, row]), np.concatenate([approach, approach]), \
-            np.concatenate([orient, -orient])
+        row, approach, orient = (
+            np.concatenate([row, row]),
+            np.concatenate([approach, approach]),
+            np.concatenate([orient, -orient]),
+        )
     # group by sphere, keeping the generation order inside each sphere: stable ranks
     order = np.argsort(row, kind="stable")
     row, approach, orient = row[order], approach[order], orient[order]
@@ -88,17 +106,25 @@ def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, 
     rank = np.arange(len(row)) - start
     sphere_index = np.asarray(symmetry.sphere_index)[row]
     centers = np.asarray(symmetry.centers)[row]
-    table = pd.DataFrame({
-        "hand": hand.name,
-        "id": sphere_index * IDS_PER_SPHERE + rank,
-        "sphere_index": sphere_index,
-        "sphere_class": pd.Categorical(np.asarray(CLASSES)[class_id[row]], categories=CLASSES),
-        "diameter_m": 2.0 * np.asarray(symmetry.radii)[row],
-        "preshape": preshape or hand.default_preshape,
-        "grasp_x": centers[:, 0], "grasp_y": centers[:, 1], "grasp_z": centers[:, 2],
-        "approach_x": approach[:, 0], "approach_y": approach[:, 1], "approach_z": approach[:, 2],
-        "orient_x": orient[:, 0], "orient_y": orient[:, 1], "orient_z": orient[:, 2],
-    })
+    table = pd.DataFrame(
+        {
+            "hand": hand.name,
+            "id": sphere_index * IDS_PER_SPHERE + rank,
+            "sphere_index": sphere_index,
+            "sphere_class": pd.Categorical(np.asarray(CLASSES)[class_id[row]], categories=CLASSES),
+            "diameter_m": 2.0 * np.asarray(symmetry.radii)[row],
+            "preshape": preshape or hand.default_preshape,
+            "grasp_x": centers[:, 0],
+            "grasp_y": centers[:, 1],
+            "grasp_z": centers[:, 2],
+            "approach_x": approach[:, 0],
+            "approach_y": approach[:, 1],
+            "approach_z": approach[:, 2],
+            "orient_x": orient[:, 0],
+            "orient_y": orient[:, 1],
+            "orient_z": orient[:, 2],
+        }
+    )
     return table.sort_values("id", kind="stable").reset_index(drop=True)
 
 
@@ -114,5 +140,10 @@ def generate_for_hands(symmetry, hands, *, approach_directions=4, flipped_candid
     -------
     pandas.DataFrame, columns :data:`COLUMNS`; ``(hand, id)`` is unique
     """
-    return pd.concat([generate(symmetry, hand, approach_directions=approach_directions,
-                               flipped_candidates=flipped_candidates) for hand in hands], ignore_index=True)
+    return pd.concat(
+        [
+            generate(symmetry, hand, approach_directions=approach_directions, flipped_candidates=flipped_candidates)
+            for hand in hands
+        ],
+        ignore_index=True,
+    )

@@ -46,8 +46,7 @@ def folder_entries(folder, *, prefix="", scale=None, size=None, only=None, param
     if scale is not None and size is not None:
         raise BadInputError("give --scale or --size, not both")
     root, files = mesh_files(folder)
-    named = select_meshes([(object_name(relative, prefix), path) for relative, path in files],
-                          folder=root, only=only)
+    named = select_meshes([(object_name(relative, prefix), path) for relative, path in files], folder=root, only=only)
     first = {}
     for name, path in named:
         if name in first:  # two files would share data/<name>/ and their DVC stages
@@ -75,13 +74,16 @@ def replace_objects(params_text, entries):
     end = starts[0] + 1
     # the block runs over indented and blank lines; a comment in column 0 after a blank line
     # belongs to the next section
-    while end < len(lines) and (lines[end].startswith((" ", "\t")) or not lines[end].strip()
-                                or (lines[end].startswith("#") and lines[end - 1].strip())):
+    while end < len(lines) and (
+        lines[end].startswith((" ", "\t"))
+        or not lines[end].strip()
+        or (lines[end].startswith("#") and lines[end - 1].strip())
+    ):
         end += 1
     while end > starts[0] + 1 and not lines[end - 1].strip():
         end -= 1  # keep the blank lines before the next section
     block = ["objects:\n"] + [f"  {line}\n" for line in entry_lines(entries)]
-    text = "".join(lines[:starts[0]] + block + lines[end:])
+    text = "".join(lines[: starts[0]] + block + lines[end:])
     if yaml.safe_load(text)["objects"] != entries:  # a path YAML would misread: refuse, change nothing
         raise BadInputError("params.yaml: the new objects section does not read back as written")
     return text
@@ -89,7 +91,9 @@ def replace_objects(params_text, entries):
 
 def entry_lines(entries):
     """One flow-style YAML line per entry: ``name: {source: "...", scale: s}``."""
-    return [f"{name}: {{source: {json.dumps(spec['source'])}, scale: {spec['scale']}}}" for name, spec in entries.items()]
+    return [
+        f"{name}: {{source: {json.dumps(spec['source'])}, scale: {spec['scale']}}}" for name, spec in entries.items()
+    ]
 
 
 def _sample_checks(path):
@@ -108,8 +112,11 @@ def _sample_checks(path):
         raise BadParamsError(f"{path}: must be a mapping of sections")
     sample = section_from_mapping(SampleParams, raw.get("sample"), section="sample", source=str(path))
     scales = raw.get("scales", [1.0])
-    if not (isinstance(scales, list) and scales and all(
-            isinstance(scale, (int, float)) and not isinstance(scale, bool) and scale > 0 for scale in scales)):
+    if not (
+        isinstance(scales, list)
+        and scales
+        and all(isinstance(scale, (int, float)) and not isinstance(scale, bool) and scale > 0 for scale in scales)
+    ):
         raise BadParamsError(f"{path}: scales must be a list of positive numbers, got {scales!r}")
     return sample, [float(scale) for scale in scales]
 
@@ -131,15 +138,23 @@ def _checked_scale(path, scale, size, sample, scales, warn):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", RepairWarning)
         # the stage's own load, repairs and checks; few samples, since only the checks matter here
-        surface = sample_object(str(path), scale=factor * scales[0], rng=np.random.default_rng(0),
-                                **{**dataclasses.asdict(sample), "count": 100})
+        surface = sample_object(
+            str(path),
+            scale=factor * scales[0],
+            rng=np.random.default_rng(0),
+            **{**dataclasses.asdict(sample), "count": 100},
+        )
     for repair in caught:
         warn(str(repair.message))
     coordinates = surface.vertices if len(surface.vertices) else surface.points
     for other in scales[1:]:  # the stage runs the object at every params scale: the units check at each
         try:
-            check_size(coordinates * (other / scales[0]), name=str(path), min_extent=sample.min_extent_m,
-                       max_extent=sample.max_extent_m)
+            check_size(
+                coordinates * (other / scales[0]),
+                name=str(path),
+                min_extent=sample.min_extent_m,
+                max_extent=sample.max_extent_m,
+            )
         except BadInputError as err:
             raise BadInputError(f"{err} [at params scale {other:g}]") from None
     return factor
@@ -162,13 +177,14 @@ def figure_objects_following(text, names, *, source):
         end = section + 1
         while end < len(lines) and (lines[end].startswith((" ", "\t")) or not lines[end].strip()):
             end += 1
-        key = next((number for number in range(section + 1, end)
-                    if re.match(r"\s+figure_objects:", lines[number])), None)
+        key = next(
+            (number for number in range(section + 1, end) if re.match(r"\s+figure_objects:", lines[number])), None
+        )
         if key is None:
             lines.insert(section + 1, f"  figure_objects: {flow}\n")
         else:
             indent, rest = re.match(r"(\s+figure_objects:)(.*)", lines[key].rstrip("\n")).groups()
-            comment = re.search(r"\s+#.*$", rest[rest.find("]") + 1:] if "[" in rest else rest)
+            comment = re.search(r"\s+#.*$", rest[rest.find("]") + 1 :] if "[" in rest else rest)
             lines[key] = f"{indent} {flow}{comment.group(0) if comment else ''}\n"
             if "[" not in rest:  # a block list: drop its "- name" lines
                 after = key + 1

@@ -108,14 +108,16 @@ class CellGrid:
         sizes = high - low + 1
         cells_per_query = np.prod(sizes, axis=1)
         owners, indices, distances = [], [], []
-        bounds = np.searchsorted(np.cumsum(cells_per_query), np.arange(_CHUNK_CELLS, cells_per_query.sum(),
-                                                                        _CHUNK_CELLS), side="right")
+        bounds = np.searchsorted(
+            np.cumsum(cells_per_query), np.arange(_CHUNK_CELLS, cells_per_query.sum(), _CHUNK_CELLS), side="right"
+        )
         for first, last in zip(np.r_[0, bounds], np.r_[bounds, len(queries)]):
             chunk = slice(first, last)
             query_of_cell, local = expand_ranges(np.zeros(last - first), cells_per_query[chunk])
             size = sizes[chunk][query_of_cell]
-            offset = np.stack([local // (size[:, 1] * size[:, 2]), (local // size[:, 2]) % size[:, 1],
-                               local % size[:, 2]], axis=1)
+            offset = np.stack(
+                [local // (size[:, 1] * size[:, 2]), (local // size[:, 2]) % size[:, 1], local % size[:, 2]], axis=1
+            )
             cell = self._flat_id(low[chunk][query_of_cell] + offset, self.dims)
             start = self.cell_start[cell]
             cell_of_hit, position = expand_ranges(start, self.cell_start[cell + 1] - start)

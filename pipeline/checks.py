@@ -32,4 +32,3 @@ def as_points(name, array, *, columns=3, allow_empty=False):
     if not np.isfinite(values).all():
         raise BadInputError(f"{name}: holds NaN or infinite values")
     return values
-

@@ -47,8 +47,11 @@ def stage_args(description, *names, argv=None):
     parser.add_argument("--timing", help="write the stage's wall time here (JSON) when it succeeds")
     parser.add_argument("--log", help="write the stage's MCAP log here (params, hashes, counts, timings, warnings)")
     parser.add_argument("--rrd", help="write the stage's rerun recording here (empty if params `record` is false)")
-    parser.add_argument("--recording-id", default="object",
-                        help="rerun recording id and entity root: the .rrd files of one id merge in the viewer")
+    parser.add_argument(
+        "--recording-id",
+        default="object",
+        help="rerun recording id and entity root: the .rrd files of one id merge in the viewer",
+    )
     return parser.parse_args(argv)
 
 
@@ -104,9 +107,12 @@ def stage_run(args, stage, *, params=None, inputs=(), outputs=(), record=True):
         for warning in caught:
             run.warn(f"{warning.category.__name__}: {warning.message} ({Path(warning.filename).name}:{warning.lineno})")
         seconds = time.perf_counter() - start
-        timing = {"stage": stage, "seconds": round(seconds, 3),
-                  "process_seconds": round(max(_process_age(), seconds), 3),
-                  "record_seconds": round(run.record_seconds, 3)}
+        timing = {
+            "stage": stage,
+            "seconds": round(seconds, 3),
+            "process_seconds": round(max(_process_age(), seconds), 3),
+            "record_seconds": round(run.record_seconds, 3),
+        }
         if log:
             for path in run.outputs:
                 log.artefact("output", path)

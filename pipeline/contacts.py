@@ -59,8 +59,11 @@ def region_corners(points, normals, *, coplanar_deg=5.0, merge_m=None, max_corne
     # many points, but the facets and link faces involved are few
     distinct, inverse = np.unique(np.round(normals, tol.point_decimals), axis=0, return_inverse=True)
     agree = distinct @ distinct.T >= np.cos(np.radians(coplanar_deg))
-    region = np.zeros(len(points), np.int64) if agree.all() else \
-        connected_components(agree, directed=False)[1][inverse.reshape(-1)]
+    region = (
+        np.zeros(len(points), np.int64)
+        if agree.all()
+        else connected_components(agree, directed=False)[1][inverse.reshape(-1)]
+    )
     keep = []
     for label in np.unique(region):
         members = np.flatnonzero(region == label)

@@ -17,9 +17,16 @@ from .errors import PipelineError
 ROOT = Path(__file__).resolve().parents[1]
 
 #: file of each artefact; those of :data:`PER_HAND` lie in the run's ``<hand>/`` folder
-ARTEFACTS = {"surface": "surface.npz", "medial_axis": "medial_axis.npz", "spheres": "spheres.npz",
-             "sphere_grid": "sphere_grid.npz", "symmetry": "symmetry.npz", "candidates": "candidates.parquet",
-             "trials": "trials.parquet", "contacts": "contacts.parquet"}
+ARTEFACTS = {
+    "surface": "surface.npz",
+    "medial_axis": "medial_axis.npz",
+    "spheres": "spheres.npz",
+    "sphere_grid": "sphere_grid.npz",
+    "symmetry": "symmetry.npz",
+    "candidates": "candidates.parquet",
+    "trials": "trials.parquet",
+    "contacts": "contacts.parquet",
+}
 PER_HAND = ("candidates", "trials", "contacts")
 
 
@@ -44,14 +51,40 @@ STAGES = (
     Stage("mat", ("surface", "medial_axis"), ("spheres",), ("mat",)),
     Stage("sphere_grid", ("spheres",), ("sphere_grid",), ("sphere_grid",)),
     Stage("classify", ("sphere_grid", "surface"), ("symmetry",), ("record", "classify"), recording="object.rrd"),
-    Stage("candidates", ("symmetry",), ("candidates",),
-          ("candidates.approach_directions", "candidates.flipped_candidates"), args=("hand",), per_hand=True),
-    Stage("simulate", ("surface", "candidates"), ("trials", "contacts"), ("record", "seed", "simulate"),
-          args=("hand",), per_hand=True, recording="grasps.rrd"),
+    Stage(
+        "candidates",
+        ("symmetry",),
+        ("candidates",),
+        ("candidates.approach_directions", "candidates.flipped_candidates"),
+        args=("hand",),
+        per_hand=True,
+    ),
+    Stage(
+        "simulate",
+        ("surface", "candidates"),
+        ("trials", "contacts"),
+        ("record", "seed", "simulate"),
+        args=("hand",),
+        per_hand=True,
+        recording="grasps.rrd",
+    ),
 )
 #: the report reads every run's artefacts under ``data/`` (it is not per run)
-REPORT = Stage("report", (), (), ("seed", "objects", "scales", "candidates.hands", "simulate.spheres_per_object",
-                                 "simulate.mu", "simulate.cone_edges", "report"))
+REPORT = Stage(
+    "report",
+    (),
+    (),
+    (
+        "seed",
+        "objects",
+        "scales",
+        "candidates.hands",
+        "simulate.spheres_per_object",
+        "simulate.mu",
+        "simulate.cone_edges",
+        "report",
+    ),
+)
 
 
 def stage(name):
@@ -109,10 +142,15 @@ def _run_folder(entry, root):
 def dvc_file(name):
     """The text of ``dag/<name>/dvc.yaml``."""
     entry = stage(name)
-    lines = [f"# Stage `{name}` of the DAG, written by `python -m pipeline.dag` from pipeline/dag.py: edit the",
-             "# table there, not this file. One file per stage, so that each keeps its own small dvc.lock (DVC",
-             "# rewrites a file's whole lock after every stage it runs). Paths are relative to the repository root.",
-             "vars:", "  - ../../params.yaml", "stages:", f"  {name}:"]
+    lines = [
+        f"# Stage `{name}` of the DAG, written by `python -m pipeline.dag` from pipeline/dag.py: edit the",
+        "# table there, not this file. One file per stage, so that each keeps its own small dvc.lock (DVC",
+        "# rewrites a file's whole lock after every stage it runs). Paths are relative to the repository root.",
+        "vars:",
+        "  - ../../params.yaml",
+        "stages:",
+        f"  {name}:",
+    ]
     if entry is REPORT:
         lines += ["    wdir: ../..", "    cmd: python -m stages.report data report --log logs/report.mcap"]
         outs = ["report/report.md", "report/trials.parquet", "report/figures", "report/plots", "logs/report.mcap"]
@@ -122,8 +160,12 @@ def dvc_file(name):
         if entry.per_hand:
             lines.append("      hand: ${candidates.hands}")
         logs, data = _run_folder(entry, "logs"), _run_folder(entry, "data")
-        argv = [_path(item) for item in entry.inputs] + [f"${{item.{arg}}}" for arg in entry.args] \
-            + [_path(item) for item in entry.outputs] + [f"--timing {data}/timing/{name}.json", f"--log {logs}/{name}.mcap"]
+        argv = (
+            [_path(item) for item in entry.inputs]
+            + [f"${{item.{arg}}}" for arg in entry.args]
+            + [_path(item) for item in entry.outputs]
+            + [f"--timing {data}/timing/{name}.json", f"--log {logs}/{name}.mcap"]
+        )
         outs = [_path(item) for item in entry.outputs] + [f"{data}/timing/{name}.json", f"{logs}/{name}.mcap"]
         if entry.recording:
             run_logs = "logs/${item.object}/${item.scale}" + ("/${item.hand}" if entry.per_hand else "")

@@ -17,11 +17,11 @@ axis, green from a local symmetry plane, magenta P_o at their ends) and Fig. 7.
 import numpy as np
 
 from .arrays import vectors
-from .colours import CLASS_COLOURS, CLASS_LABELS, E1_COLOUR, E2_COLOUR, ORIENT_COLOUR, REDUCED_COLOUR, \
-    diameter_colours
+from .colours import CLASS_COLOURS, CLASS_LABELS, E1_COLOUR, E2_COLOUR, ORIENT_COLOUR, REDUCED_COLOUR, diameter_colours
 from .errors import BadInputError
 
 DPI = 100
+
 
 def _canvas(size):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -93,19 +93,38 @@ def candidate_lines(symmetry, candidates, *, length, max_lines=2000, seed=0):
     orient, centres = vectors(candidates, "orient")[first], np.asarray(symmetry.centers)[rows]
     end = grasp - length * direction
     axes = np.asarray(symmetry.axes).reshape(-1, 3, 3)[rows]
-    segments = np.concatenate([
-        np.stack([centres - length / 4 * axes[:, 0], centres + length / 4 * axes[:, 0]], axis=1),
-        np.stack([centres - length / 4 * axes[:, 1], centres + length / 4 * axes[:, 1]], axis=1),
-        np.stack([grasp, end], axis=1),
-        np.stack([end - length / 8 * orient, end + length / 8 * orient], axis=1)]).reshape(-1, 2, 3)
-    kinds = np.concatenate([np.repeat(["e1", "e2"], len(rows)),
-                            candidates.sphere_class.astype(str).to_numpy()[first].astype(object),
-                            np.full(len(first), "orient", dtype=object)]).astype(str)
+    segments = np.concatenate(
+        [
+            np.stack([centres - length / 4 * axes[:, 0], centres + length / 4 * axes[:, 0]], axis=1),
+            np.stack([centres - length / 4 * axes[:, 1], centres + length / 4 * axes[:, 1]], axis=1),
+            np.stack([grasp, end], axis=1),
+            np.stack([end - length / 8 * orient, end + length / 8 * orient], axis=1),
+        ]
+    ).reshape(-1, 2, 3)
+    kinds = np.concatenate(
+        [
+            np.repeat(["e1", "e2"], len(rows)),
+            candidates.sphere_class.astype(str).to_numpy()[first].astype(object),
+            np.full(len(first), "orient", dtype=object),
+        ]
+    ).astype(str)
     return segments, kinds, len(take)
 
 
-def sphere_figure(spheres, symmetry, candidates, *, hand=None, title="", size=(1200, 600), approach_length=0.1,
-                  max_lines=2000, max_points=20000, seed=0, view=(25.0, -60.0)):
+def sphere_figure(
+    spheres,
+    symmetry,
+    candidates,
+    *,
+    hand=None,
+    title="",
+    size=(1200, 600),
+    approach_length=0.1,
+    max_lines=2000,
+    max_points=20000,
+    seed=0,
+    view=(25.0, -60.0),
+):
     """The grid of medial spheres and the candidate grasps of one object (paper Fig. 5).
 
     Left: every sphere centre, marker area growing with the radius, coloured by
@@ -165,10 +184,13 @@ def sphere_figure(spheres, symmetry, candidates, *, hand=None, title="", size=(1
     area = 1.0 + 24.0 * ((radii[shown] - radii.min()) / span if span > 0 else 0.5)
     left.scatter(*centres[shown].T, s=area, c=diameter_colours(2.0 * radii)[shown], linewidths=0, depthshade=False)
     _cube_axes(left, low, high, view)
-    left.set_title(f"medial spheres: {len(radii)}" + (f" ({len(shown)} shown)" if len(shown) < len(radii) else ""),
-                   fontsize=9)
-    colours = ScalarMappable(Normalize(2e3 * radii.min(), 2e3 * radii.max()),
-                             LinearSegmentedColormap.from_list("diameter", [(1, 0, 0), (0, 1, 0), (0, 0, 1)]))
+    left.set_title(
+        f"medial spheres: {len(radii)}" + (f" ({len(shown)} shown)" if len(shown) < len(radii) else ""), fontsize=9
+    )
+    colours = ScalarMappable(
+        Normalize(2e3 * radii.min(), 2e3 * radii.max()),
+        LinearSegmentedColormap.from_list("diameter", [(1, 0, 0), (0, 1, 0), (0, 0, 1)]),
+    )
     bar = figure.colorbar(colours, cax=figure.add_axes((0.05, 0.25 * top, 0.012, 0.5 * top)))
     bar.set_label("sphere diameter (mm)", fontsize=8)
     bar.ax.yaxis.set_ticks_position("left")
@@ -179,18 +201,24 @@ def sphere_figure(spheres, symmetry, candidates, *, hand=None, title="", size=(1
     right.scatter(*np.asarray(symmetry.centers).T, s=0.5, c=[REDUCED_COLOUR], linewidths=0, depthshade=False)
     palette = {"e1": E1_COLOUR, "e2": E2_COLOUR, "orient": ORIENT_COLOUR, **CLASS_COLOURS}
     if len(segments):
-        right.add_collection3d(Line3DCollection(segments, colors=[palette.get(kind, (0, 0, 0)) for kind in kinds],
-                                                linewidths=0.7))
+        right.add_collection3d(
+            Line3DCollection(segments, colors=[palette.get(kind, (0, 0, 0)) for kind in kinds], linewidths=0.7)
+        )
     _cube_axes(right, low, high, view)
     total = mine.sphere_index.nunique()
-    right.set_title(f"reduced set: {len(symmetry)} spheres\n{hand or 'no hand'}: {len(mine)} candidates on "
-                    f"{total} spheres" + (f" ({drawn} drawn)" if drawn < total else ""), fontsize=9)
+    right.set_title(
+        f"reduced set: {len(symmetry)} spheres\n{hand or 'no hand'}: {len(mine)} candidates on "
+        f"{total} spheres" + (f" ({drawn} drawn)" if drawn < total else ""),
+        fontsize=9,
+    )
     present = [kind for kind in CLASS_COLOURS if (kinds == kind).any()]
     handles = [Line2D([], [], marker=".", linestyle="", color=REDUCED_COLOUR, label="reduced set")]
     handles += [Line2D([], [], color=CLASS_COLOURS[kind], label=CLASS_LABELS[kind]) for kind in present]
     if len(segments):
-        handles += [Line2D([], [], color=colour, label=label) for colour, label in
-                    ((ORIENT_COLOUR, "P_o"), (E1_COLOUR, "e1"), (E2_COLOUR, "e2"))]
+        handles += [
+            Line2D([], [], color=colour, label=label)
+            for colour, label in ((ORIENT_COLOUR, "P_o"), (E1_COLOUR, "e1"), (E2_COLOUR, "e2"))
+        ]
     right.legend(handles=handles, loc="upper left", fontsize=7, frameon=False)
     return _pixels(figure)
 
@@ -246,11 +274,16 @@ def grasp_images(surface, hand, trials, *, count=3, size=(400, 400)):
     for row in best_grasps(trials, hand=hand.name, count=count).itertuples():
         joints = np.asarray(row.joints, dtype=np.float64)
         if joints.shape != (len(hand.limits),):
-            raise BadInputError(f"trials: joints of trial {row.Index} have shape {joints.shape}, "
-                                f"hand {hand.name!r} has {len(hand.limits)} joints")
+            raise BadInputError(
+                f"trials: joints of trial {row.Index} have shape {joints.shape}, "
+                f"hand {hand.name!r} has {len(hand.limits)} joints"
+            )
         base = ((row.base_x, row.base_y, row.base_z), (row.base_qx, row.base_qy, row.base_qz, row.base_qw))
-        images.append(render_hand(hand, dict(zip(hand.limits, joints.tolist())), base=base, surface=surface,
-                                  size=size, frame="scene"))
+        images.append(
+            render_hand(
+                hand, dict(zip(hand.limits, joints.tolist())), base=base, surface=surface, size=size, frame="scene"
+            )
+        )
     return images
 
 
@@ -279,5 +312,5 @@ def image_grid(images, columns, *, pad=8):
     grid = np.full((rows * (height + pad) + pad, columns * (width + pad) + pad, 3), 255, np.uint8)
     for number, image in enumerate(images):
         top, left = pad + (number // columns) * (height + pad), pad + (number % columns) * (width + pad)
-        grid[top:top + image.shape[0], left:left + image.shape[1]] = image
+        grid[top : top + image.shape[0], left : left + image.shape[1]] = image
     return grid

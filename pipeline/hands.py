@@ -101,9 +101,19 @@ class Hand:
 
     def key(self):
         """A hashable summary of everything that defines the hand (for caches)."""
-        return (self.name, self.urdf, self.base_link, self.approach, self.wrap, self.grasp_centre, self.fingers,
-                tuple(self.limits.items()), tuple((k, tuple(v.items())) for k, v in self.preshapes.items()),
-                self.links, self.joints)
+        return (
+            self.name,
+            self.urdf,
+            self.base_link,
+            self.approach,
+            self.wrap,
+            self.grasp_centre,
+            self.fingers,
+            tuple(self.limits.items()),
+            tuple((k, tuple(v.items())) for k, v in self.preshapes.items()),
+            self.links,
+            self.joints,
+        )
 
     @property
     def default_preshape(self):
@@ -138,8 +148,9 @@ def _barrett():
     palm_top = 0.0754
     links, joints = [Link("palm", (0.089, 0.089, palm_top), (0.0, 0.0, palm_top / 2), (0.2, 0.2, 0.22, 1.0))], []
     for prefix, x, spread_axis in (("f1", 0.025, (0.0, 0.0, -1.0)), ("f2", -0.025, (0.0, 0.0, 1.0))):
-        chain = _finger_chain(prefix, "palm", (x, 0.0, palm_top), (1.0, 0.0, 0.0), (0.070, 0.055),
-                              spread=(spread_axis, (0.0, 0.05, 0.0)))
+        chain = _finger_chain(
+            prefix, "palm", (x, 0.0, palm_top), (1.0, 0.0, 0.0), (0.070, 0.055), spread=(spread_axis, (0.0, 0.05, 0.0))
+        )
         links += chain[0]
         joints += chain[1]
     chain = _finger_chain("f3", "palm", (0.0, -0.05, palm_top), (-1.0, 0.0, 0.0), (0.070, 0.055))
@@ -150,37 +161,64 @@ def _barrett():
     for prefix in ("f1", "f2", "f3"):
         limits.update({f"{prefix}_prox": (0.0, 2.44), f"{prefix}_dist": (0.0, 0.84)})
         fingers.append(Finger((f"{prefix}_prox", f"{prefix}_dist"), (1.0, 0.344)))
-    return Hand("barrett", 0.14, {"parallel": {}}, grasp_centre=(0.0, 0.0, palm_top + 0.035),
-                fingers=tuple(fingers), limits=limits, links=tuple(links), joints=tuple(joints))
+    return Hand(
+        "barrett",
+        0.14,
+        {"parallel": {}},
+        grasp_centre=(0.0, 0.0, palm_top + 0.035),
+        fingers=tuple(fingers),
+        limits=limits,
+        links=tuple(links),
+        joints=tuple(joints),
+    )
 
 
 def _armar3():
     palm_top = 0.0404
     links = [Link("palm", (0.10, 0.12, palm_top), (0.0, 0.0, palm_top / 2), (0.25, 0.3, 0.45, 1.0))]
     joints, fingers, limits = [], [], {}
-    for prefix, x, distal in (("index", -0.0378, 0.0588), ("middle", -0.0108, 0.0588),
-                              ("ring", 0.0132, 0.0513), ("pinky", 0.0352, 0.0438)):
-        chain = _finger_chain(prefix, "palm", (x, 0.047, palm_top), (1.0, 0.0, 0.0), (0.0402, distal),
-                              width=0.018, thickness=0.016)
+    for prefix, x, distal in (
+        ("index", -0.0378, 0.0588),
+        ("middle", -0.0108, 0.0588),
+        ("ring", 0.0132, 0.0513),
+        ("pinky", 0.0352, 0.0438),
+    ):
+        chain = _finger_chain(
+            prefix, "palm", (x, 0.047, palm_top), (1.0, 0.0, 0.0), (0.0402, distal), width=0.018, thickness=0.016
+        )
         links += chain[0]
         joints += chain[1]
         fingers.append(Finger((f"{prefix}_prox", f"{prefix}_dist"), (1.0, 0.5)))
         limits.update({f"{prefix}_prox": (0.0, math.pi / 2), f"{prefix}_dist": (0.0, math.pi / 2)})
     # the thumb: a metacarpal on the palm joint, then two phalanges, all closing about -x
     links.append(Link("thumb_metacarpal", (0.02, 0.018, 0.02), (0.0, 0.0, 0.01)))
-    joints.append(Joint("thumb_palm", "palm", "thumb_metacarpal", "revolute", (-0.0243, -0.047, 0.02925),
-                        (-1.0, 0.0, 0.0)))
-    chain = _finger_chain("thumb", "thumb_metacarpal", (0.0, 0.0, 0.02), (-1.0, 0.0, 0.0), (0.0402, 0.0588),
-                          width=0.02, thickness=0.018)
+    joints.append(
+        Joint("thumb_palm", "palm", "thumb_metacarpal", "revolute", (-0.0243, -0.047, 0.02925), (-1.0, 0.0, 0.0))
+    )
+    chain = _finger_chain(
+        "thumb", "thumb_metacarpal", (0.0, 0.0, 0.02), (-1.0, 0.0, 0.0), (0.0402, 0.0588), width=0.02, thickness=0.018
+    )
     links += chain[0]
     joints += chain[1]
     fingers.append(Finger(("thumb_palm", "thumb_prox", "thumb_dist"), (1.0, 1.0, 0.5)))
-    limits.update({"thumb_palm": (-math.pi / 2, math.pi / 2), "thumb_prox": (0.0, math.pi / 2),
-                   "thumb_dist": (0.0, math.pi / 2)})
-    preshapes = {"parallel": {"thumb_palm": -0.2}, "power": {"thumb_palm": -0.2, "index_prox": 0.3,
-                 "middle_prox": 0.3, "ring_prox": 0.3, "pinky_prox": 0.3}, "precision": {"thumb_palm": 0.2}}
-    return Hand("armar3", 0.094, preshapes, grasp_centre=(0.0, 0.0, palm_top + 0.035), fingers=tuple(fingers),
-                limits=limits, links=tuple(links), joints=tuple(joints))
+    limits.update(
+        {"thumb_palm": (-math.pi / 2, math.pi / 2), "thumb_prox": (0.0, math.pi / 2), "thumb_dist": (0.0, math.pi / 2)}
+    )
+    preshapes = {
+        "parallel": {"thumb_palm": -0.2},
+        "power": {"thumb_palm": -0.2, "index_prox": 0.3, "middle_prox": 0.3, "ring_prox": 0.3, "pinky_prox": 0.3},
+        "precision": {"thumb_palm": 0.2},
+    }
+    return Hand(
+        "armar3",
+        0.094,
+        preshapes,
+        grasp_centre=(0.0, 0.0, palm_top + 0.035),
+        fingers=tuple(fingers),
+        limits=limits,
+        links=tuple(links),
+        joints=tuple(joints),
+    )
 
 
 def _parallel_jaw():
@@ -189,12 +227,21 @@ def _parallel_jaw():
     joints, fingers, limits = [], [], {}
     for name, side in (("left", 1.0), ("right", -1.0)):
         links.append(Link(f"{name}_pad", (0.02, 0.008, 0.05), (0.0, side * 0.004, 0.025), (0.3, 0.3, 0.32, 1.0)))
-        joints.append(Joint(f"{name}_slide", "palm", f"{name}_pad", "prismatic", (0.0, side * 0.04, palm_top),
-                            (0.0, -side, 0.0)))
+        joints.append(
+            Joint(f"{name}_slide", "palm", f"{name}_pad", "prismatic", (0.0, side * 0.04, palm_top), (0.0, -side, 0.0))
+        )
         fingers.append(Finger((f"{name}_slide",), (1.0,)))
         limits[f"{name}_slide"] = (0.0, 0.04)
-    return Hand("parallel_jaw", 0.08, {"parallel": {}}, grasp_centre=(0.0, 0.0, palm_top + 0.025),
-                fingers=tuple(fingers), limits=limits, links=tuple(links), joints=tuple(joints))
+    return Hand(
+        "parallel_jaw",
+        0.08,
+        {"parallel": {}},
+        grasp_centre=(0.0, 0.0, palm_top + 0.025),
+        fingers=tuple(fingers),
+        limits=limits,
+        links=tuple(links),
+        joints=tuple(joints),
+    )
 
 
 def _franka():
@@ -215,9 +262,16 @@ def _franka():
     robot = read_urdf(urdf, base_link="panda_hand")
     names = ("panda_finger_joint1", "panda_finger_joint2")
     limits = {name: robot.joint(name).limits for name in names}
-    return Hand("franka", 0.08, {"parallel": {name: limits[name][1] for name in names}},
-                grasp_centre=(0.0, 0.0, 0.105), fingers=tuple(Finger((name,), (-1.0,)) for name in names),
-                limits=limits, urdf=urdf, base_link="panda_hand")
+    return Hand(
+        "franka",
+        0.08,
+        {"parallel": {name: limits[name][1] for name in names}},
+        grasp_centre=(0.0, 0.0, 0.105),
+        fingers=tuple(Finger((name,), (-1.0,)) for name in names),
+        limits=limits,
+        urdf=urdf,
+        base_link="panda_hand",
+    )
 
 
 HANDS = {hand.name: hand for hand in (_armar3(), _barrett(), _parallel_jaw(), _franka())}
@@ -240,30 +294,41 @@ def get_hand(name):
 
 def urdf_text(hand):
     """The URDF of a built-in hand: box links with equal visual and collision shapes."""
+
     def vec(values):
         return " ".join(f"{value:.6g}" for value in values)
 
     lines = ['<?xml version="1.0"?>', f'<robot name="{hand.name}">']
     for link in hand.links:
         box = f'<origin xyz="{vec(link.centre)}"/><geometry><box size="{vec(link.size)}"/></geometry>'
-        lines += [f'  <link name="{link.name}">',
-                  '    <inertial><mass value="0.1"/><inertia ixx="1e-4" iyy="1e-4" izz="1e-4" ixy="0" ixz="0" iyz="0"/></inertial>',
-                  f'    <visual>{box}<material name="{link.name}_colour"><color rgba="{vec(link.rgba)}"/></material></visual>',
-                  f'    <collision>{box}</collision>', '  </link>']
+        lines += [
+            f'  <link name="{link.name}">',
+            '    <inertial><mass value="0.1"/><inertia ixx="1e-4" iyy="1e-4" izz="1e-4" ixy="0" ixz="0" iyz="0"/></inertial>',
+            f'    <visual>{box}<material name="{link.name}_colour"><color rgba="{vec(link.rgba)}"/></material></visual>',
+            f"    <collision>{box}</collision>",
+            "  </link>",
+        ]
     for joint in hand.joints:
         lower, upper = hand.limits[joint.name]
-        lines += [f'  <joint name="{joint.name}" type="{joint.kind}">',
-                  f'    <parent link="{joint.parent}"/><child link="{joint.child}"/>',
-                  f'    <origin xyz="{vec(joint.origin)}"/><axis xyz="{vec(joint.axis)}"/>',
-                  f'    <limit lower="{lower:.6g}" upper="{upper:.6g}" effort="10" velocity="1"/>', '  </joint>']
+        lines += [
+            f'  <joint name="{joint.name}" type="{joint.kind}">',
+            f'    <parent link="{joint.parent}"/><child link="{joint.child}"/>',
+            f'    <origin xyz="{vec(joint.origin)}"/><axis xyz="{vec(joint.axis)}"/>',
+            f'    <limit lower="{lower:.6g}" upper="{upper:.6g}" effort="10" velocity="1"/>',
+            "  </joint>",
+        ]
     return "\n".join(lines + ["</robot>", ""])
 
 
 def spec_dict(hand, urdf_name):
     """The YAML-ready spec of ``hand`` referring to the URDF file ``urdf_name``."""
     spec = {
-        "name": hand.name, "urdf": urdf_name, "max_graspable_diameter": hand.max_graspable_diameter,
-        "approach": list(hand.approach), "wrap": list(hand.wrap), "grasp_centre": list(hand.grasp_centre),
+        "name": hand.name,
+        "urdf": urdf_name,
+        "max_graspable_diameter": hand.max_graspable_diameter,
+        "approach": list(hand.approach),
+        "wrap": list(hand.wrap),
+        "grasp_centre": list(hand.grasp_centre),
         "fingers": [{"joints": list(finger.joints), "ratios": list(finger.ratios)} for finger in hand.fingers],
         "limits": {joint: list(bounds) for joint, bounds in hand.limits.items()},
         "preshapes": {name: dict(values) for name, values in hand.preshapes.items()},
@@ -297,12 +362,12 @@ def load_hand(path):
     except FileNotFoundError:
         raise BadParamsError(f"{path}: hand spec not found") from None
     except (yaml.YAMLError, tomllib.TOMLDecodeError) as err:
-        raise BadParamsError(f"{path}: hand spec is not valid {path.suffix[1:].upper()} "
-                             f"({str(err).splitlines()[0]})") from None
+        raise BadParamsError(
+            f"{path}: hand spec is not valid {path.suffix[1:].upper()} ({str(err).splitlines()[0]})"
+        ) from None
     if not isinstance(raw, dict):
         raise BadParamsError(f"{path}: hand spec must be a mapping")
-    required = ("name", "urdf", "max_graspable_diameter", "approach", "wrap", "grasp_centre", "fingers",
-                "preshapes")
+    required = ("name", "urdf", "max_graspable_diameter", "approach", "wrap", "grasp_centre", "fingers", "preshapes")
     optional = ("limits", "base_link")  # limits default to the URDF's, base_link to its root
     missing = [key for key in required if key not in raw]
     if missing:
@@ -325,13 +390,17 @@ def load_hand(path):
         declared = [joint for finger in fingers for joint in finger.joints]
         unknown_joint = next((joint for joint in declared if joint not in movable), None)
         if unknown_joint is not None:
-            raise BadParamsError(f"{path}: finger joint {unknown_joint!r} is not a movable joint of "
-                                 f"{Path(urdf).name} below {robot.root!r}")
+            raise BadParamsError(
+                f"{path}: finger joint {unknown_joint!r} is not a movable joint of "
+                f"{Path(urdf).name} below {robot.root!r}"
+            )
         # the spec's limits in its order (the trials' joint order), the URDF's for joints it leaves out
         limits = {str(joint): (float(lo), float(hi)) for joint, (lo, hi) in (raw.get("limits") or {}).items()}
         limits.update({joint: movable[joint].limits for joint in declared if joint not in limits})
-        preshapes = {str(name): {str(j): float(v) for j, v in (values or {}).items()}
-                     for name, values in raw["preshapes"].items()}
+        preshapes = {
+            str(name): {str(j): float(v) for j, v in (values or {}).items()}
+            for name, values in raw["preshapes"].items()
+        }
         approach, wrap, centre = (tuple(float(v) for v in raw[key]) for key in ("approach", "wrap", "grasp_centre"))
         diameter = float(raw["max_graspable_diameter"])
     except (TypeError, ValueError, KeyError, AttributeError) as err:
@@ -342,8 +411,18 @@ def load_hand(path):
         problems.insert(0, f"joint {unknown_joint!r} is not in {Path(urdf).name} below {robot.root!r}")
     if problems:
         raise BadParamsError(f"{path}: {problems[0]}")
-    return Hand(str(raw["name"]), diameter, preshapes, approach, wrap, centre, fingers, limits, urdf=str(urdf),
-                base_link=base_link)
+    return Hand(
+        str(raw["name"]),
+        diameter,
+        preshapes,
+        approach,
+        wrap,
+        centre,
+        fingers,
+        limits,
+        urdf=str(urdf),
+        base_link=base_link,
+    )
 
 
 def _spec_problems(fingers, limits, preshapes, approach, wrap, centre, diameter):
@@ -352,8 +431,11 @@ def _spec_problems(fingers, limits, preshapes, approach, wrap, centre, diameter)
         problems.append("max_graspable_diameter must be a positive number of metres")
     if len(approach) != 3 or len(wrap) != 3 or len(centre) != 3:
         problems.append("approach, wrap and grasp_centre must be 3-vectors")
-    elif abs(np.linalg.norm(approach) - 1) > 1e-6 or abs(np.linalg.norm(wrap) - 1) > 1e-6 \
-            or abs(np.dot(approach, wrap)) > 1e-6:
+    elif (
+        abs(np.linalg.norm(approach) - 1) > 1e-6
+        or abs(np.linalg.norm(wrap) - 1) > 1e-6
+        or abs(np.dot(approach, wrap)) > 1e-6
+    ):
         problems.append("approach and wrap must be orthogonal unit vectors")
     if not fingers:
         problems.append("fingers must list at least one closing group")

@@ -36,26 +36,26 @@ class HandModel:
     ``K`` convex pieces, ``S`` drawn boxes."""
 
     name: str
-    links: tuple          # (L,) link names
-    parent: np.ndarray    # (L,) int, -1 for the base
-    origin: np.ndarray    # (L, 4, 4) joint frame in the parent link frame
-    axis: np.ndarray      # (L, 3) unit joint axes
+    links: tuple  # (L,) link names
+    parent: np.ndarray  # (L,) int, -1 for the base
+    origin: np.ndarray  # (L, 4, 4) joint frame in the parent link frame
+    axis: np.ndarray  # (L, 3) unit joint axes
     prismatic: np.ndarray  # (L,) bool
-    driver: np.ndarray    # (L,) int, actuated joint moving the link's joint, -1 fixed
+    driver: np.ndarray  # (L,) int, actuated joint moving the link's joint, -1 fixed
     multiplier: np.ndarray  # (L,)
-    offset: np.ndarray    # (L,)
-    joints: tuple         # (J,) actuated joint names, the hand's ``limits`` order
-    lower: np.ndarray     # (J,)
-    upper: np.ndarray     # (J,)
-    closing: np.ndarray   # (J,) coupling ratio of the joint in its finger (sign = direction)
-    finger: np.ndarray    # (J,) int, the finger of each joint
-    moves: np.ndarray     # (J, L) bool, joint j moves link l
-    lever: np.ndarray     # (J, L) m per unit of joint
-    points: np.ndarray    # (P, 3) link frame
+    offset: np.ndarray  # (L,)
+    joints: tuple  # (J,) actuated joint names, the hand's ``limits`` order
+    lower: np.ndarray  # (J,)
+    upper: np.ndarray  # (J,)
+    closing: np.ndarray  # (J,) coupling ratio of the joint in its finger (sign = direction)
+    finger: np.ndarray  # (J,) int, the finger of each joint
+    moves: np.ndarray  # (J, L) bool, joint j moves link l
+    lever: np.ndarray  # (J, L) m per unit of joint
+    points: np.ndarray  # (P, 3) link frame
     point_link: np.ndarray  # (P,)
     link_centre: np.ndarray  # (L, 3) link frame, centre of the link's bounding sphere
     link_radius: np.ndarray  # (L,) 0 for a link without geometry
-    planes: np.ndarray    # (K, F, 4) unit outward normal and offset, n . x + d <= 0 inside; padded rows never bind
+    planes: np.ndarray  # (K, F, 4) unit outward normal and offset, n . x + d <= 0 inside; padded rows never bind
     piece_link: np.ndarray  # (K,)
     piece_edges: np.ndarray  # (K, E, 2, 3) link frame, NaN-padded: edges between non-coplanar faces
     edge_planes: np.ndarray  # (K, E, 2) the rows of ``planes`` of the two faces at each edge
@@ -68,7 +68,7 @@ class HandModel:
     box_rotation: np.ndarray  # (S, 3, 3)
     box_half: np.ndarray  # (S, 3)
     box_link: np.ndarray  # (S,)
-    mimics: tuple         # ((joint name, link index), ...) joints that follow an actuated one
+    mimics: tuple  # ((joint name, link index), ...) joints that follow an actuated one
 
     @property
     def fingers(self):
@@ -169,8 +169,9 @@ def _shape_points_and_hull(shape, spacing):
     if shape.kind == "box":
         half = np.asarray(shape.size) / 2
         hull = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1], indexing="ij")).reshape(3, -1).T * half
-        edges = np.array([(a, b) for a in range(8) for b in range(a + 1, 8)
-                          if np.count_nonzero(hull[a] != hull[b]) == 1])
+        edges = np.array(
+            [(a, b) for a in range(8) for b in range(a + 1, 8) if np.count_nonzero(hull[a] != hull[b]) == 1]
+        )
         local = _edge_points(hull, edges, spacing)
     else:
         import trimesh
@@ -217,11 +218,23 @@ def _hull_edges(hull_points, planes):
         for corner in range(3):
             edge = tuple(sorted((simplex[corner], simplex[(corner + 1) % 3])))
             owner.setdefault(edge, []).append(facet)
-    edges = [(edge, facets) for edge, facets in owner.items()
-             if len(facets) == 2 and not np.allclose(hull.equations[facets[0]], hull.equations[facets[1]], atol=10.0 ** -tol.plane_decimals)]
+    edges = [
+        (edge, facets)
+        for edge, facets in owner.items()
+        if len(facets) == 2
+        and not np.allclose(hull.equations[facets[0]], hull.equations[facets[1]], atol=10.0**-tol.plane_decimals)
+    ]
     ends = np.array([edge for edge, _ in edges], dtype=np.int64).reshape(-1, 2)
-    sides = np.array([[np.abs(planes - np.round(hull.equations[facet], tol.plane_decimals)).sum(axis=1).argmin() for facet in facets]
-                      for _, facets in edges], dtype=np.int64).reshape(-1, 2)
+    sides = np.array(
+        [
+            [
+                np.abs(planes - np.round(hull.equations[facet], tol.plane_decimals)).sum(axis=1).argmin()
+                for facet in facets
+            ]
+            for _, facets in edges
+        ],
+        dtype=np.int64,
+    ).reshape(-1, 2)
     return hull.points[ends], sides
 
 
@@ -315,23 +328,30 @@ def _build(frozen, spacing):
     padded = np.zeros((len(planes), width, 4))
     padded[..., 3] = -np.inf  # a padded plane never holds the maximum
     for number, equations in enumerate(planes):
-        padded[number, :len(equations)] = equations
+        padded[number, : len(equations)] = equations
     edges = [_hull_edges(hull, equations) for hull, equations in zip(pieces, planes)]
     edge_width = max((len(e[0]) for e in edges), default=1)
     piece_edges = np.full((len(edges), edge_width, 2, 3), np.nan)  # padded edges are never nearest
     edge_planes = np.zeros((len(edges), edge_width, 2), np.int64)
     for number, (segments, sides) in enumerate(edges):
-        piece_edges[number, :len(segments)] = segments
-        edge_planes[number, :len(sides)] = sides
+        piece_edges[number, : len(segments)] = segments
+        edge_planes[number, : len(sides)] = sides
     piece_centre = np.array([(h.min(axis=0) + h.max(axis=0)) / 2 for h in pieces]).reshape(-1, 3)
     piece_radius = np.array([np.linalg.norm(h - c, axis=1).max() for h, c in zip(pieces, piece_centre)])
     covers = [_cover(hull, equations) for hull, equations in zip(pieces, planes)]
-    cover_piece = np.concatenate([np.full(len(c[0]), k) for k, c in enumerate(covers)]).astype(int) if covers \
+    cover_piece = (
+        np.concatenate([np.full(len(c[0]), k) for k, c in enumerate(covers)]).astype(int)
+        if covers
         else np.zeros(0, int)
+    )
     # levers: per actuated joint and link, a bound on point speed valid in every configuration
     reach = np.linalg.norm(origin[:, :3, 3], axis=1)  # distance between consecutive joint frames
-    own_reach = np.array([np.linalg.norm(points[point_link == link], axis=1).max() if (point_link == link).any()
-                          else 0.0 for link in range(count)])
+    own_reach = np.array(
+        [
+            np.linalg.norm(points[point_link == link], axis=1).max() if (point_link == link).any() else 0.0
+            for link in range(count)
+        ]
+    )
     moves, lever = np.zeros((len(actuated), count), bool), np.zeros((len(actuated), count))
     for link in range(count):
         chain, walk = [], link
@@ -345,14 +365,41 @@ def _build(frozen, spacing):
             moves[driver[joint_link], link] = True
             lever[driver[joint_link], link] += abs(multiplier[joint_link]) * arm
     return HandModel(
-        hand.name, links, parent, origin, axis, prismatic, driver, multiplier, offset, actuated, lower, upper,
-        closing, finger_of, moves, lever, points, point_link, link_centre, link_radius, padded,
-        np.array(piece_link, int), piece_edges, edge_planes, piece_centre, piece_radius,
+        hand.name,
+        links,
+        parent,
+        origin,
+        axis,
+        prismatic,
+        driver,
+        multiplier,
+        offset,
+        actuated,
+        lower,
+        upper,
+        closing,
+        finger_of,
+        moves,
+        lever,
+        points,
+        point_link,
+        link_centre,
+        link_radius,
+        padded,
+        np.array(piece_link, int),
+        piece_edges,
+        edge_planes,
+        piece_centre,
+        piece_radius,
         np.concatenate([c[0] for c in covers]).reshape(-1, 3) if covers else np.zeros((0, 3)),
-        np.concatenate([c[1] for c in covers]) if covers else np.zeros(0), cover_piece,
-        np.array([box[0] for box in boxes]).reshape(-1, 3), np.array([box[1] for box in boxes]).reshape(-1, 3, 3),
-        np.array([box[2] for box in boxes]).reshape(-1, 3), np.array([box[3] for box in boxes], int),
-        tuple(mimics))
+        np.concatenate([c[1] for c in covers]) if covers else np.zeros(0),
+        cover_piece,
+        np.array([box[0] for box in boxes]).reshape(-1, 3),
+        np.array([box[1] for box in boxes]).reshape(-1, 3, 3),
+        np.array([box[2] for box in boxes]).reshape(-1, 3),
+        np.array([box[3] for box in boxes], int),
+        tuple(mimics),
+    )
 
 
 def base_poses(hand, grasp, approach, orient):

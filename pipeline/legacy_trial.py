@@ -73,21 +73,40 @@ def hand_rotation(hand, approach, orient):
 class GraspWorld:
     """A pybullet DIRECT client holding one object and one hand; :meth:`trial` runs a grasp."""
 
-    def __init__(self, surface, hand, *, mu=0.5, cone_edges=8, torsional_friction_m=0.0,
-                 contact_tolerance_m=0.002, retract_step_m=0.005, retract_max_m=0.2, near_m=0.004):
+    def __init__(
+        self,
+        surface,
+        hand,
+        *,
+        mu=0.5,
+        cone_edges=8,
+        torsional_friction_m=0.0,
+        contact_tolerance_m=0.002,
+        retract_step_m=0.005,
+        retract_max_m=0.2,
+        near_m=0.004,
+    ):
         self.hand = hand
         self.mu, self.cone_edges, self.torsional_friction = mu, cone_edges, torsional_friction_m
-        self.touch, self.step, self.retract_max, self.near = (contact_tolerance_m, retract_step_m,
-                                                              retract_max_m, near_m)
+        self.touch, self.step, self.retract_max, self.near = (
+            contact_tolerance_m,
+            retract_step_m,
+            retract_max_m,
+            near_m,
+        )
         self.samples, self.sample_normals = surface.points, surface.normals
         self.tree = cKDTree(surface.points)  # pykdtree's OpenMP costs ms on small queries
         self.interior = InteriorGrid.build(surface)
         self.centre = mass_properties(surface.vertices, surface.faces)
         self.torque_scale = float(np.linalg.norm(surface.points - self.centre, axis=1).max())
         self.client = pybullet.connect(pybullet.DIRECT)
-        shape = pybullet.createCollisionShape(pybullet.GEOM_MESH, vertices=surface.vertices.tolist(),
-                                              indices=surface.faces.ravel().tolist(),
-                                              flags=pybullet.GEOM_FORCE_CONCAVE_TRIMESH, physicsClientId=self.client)
+        shape = pybullet.createCollisionShape(
+            pybullet.GEOM_MESH,
+            vertices=surface.vertices.tolist(),
+            indices=surface.faces.ravel().tolist(),
+            flags=pybullet.GEOM_FORCE_CONCAVE_TRIMESH,
+            physicsClientId=self.client,
+        )
         self.object = pybullet.createMultiBody(0, shape, physicsClientId=self.client)
         # exact distances: Bullet pads meshes with a 1 mm margin by default
         pybullet.changeDynamics(self.object, -1, collisionMargin=0.0, physicsClientId=self.client)
@@ -98,8 +117,10 @@ class GraspWorld:
         return function(*args, physicsClientId=self.client, **kwargs)
 
     def _index_joints(self):
-        info = [self._call(pybullet.getJointInfo, self.body, index)
-                for index in range(self._call(pybullet.getNumJoints, self.body))]
+        info = [
+            self._call(pybullet.getJointInfo, self.body, index)
+            for index in range(self._call(pybullet.getNumJoints, self.body))
+        ]
         self.joint_index = {row[1].decode(): row[0] for row in info}
         missing = [joint for joint in self.hand.limits if joint not in self.joint_index]
         if missing:
@@ -110,8 +131,9 @@ class GraspWorld:
         # pybullet places a base by its inertial frame; the hand's declarations use the URDF frame
         self.base_inertial = self._call(pybullet.getDynamicsInfo, self.body, -1)[3:5]
         self.links = np.arange(-1, len(info))
-        self.finger_links = np.array([self.joint_index[joint] for finger in self.hand.fingers
-                                      for joint in finger.joints])
+        self.finger_links = np.array(
+            [self.joint_index[joint] for finger in self.hand.fingers for joint in finger.joints]
+        )
         self.boxes = self._boxes()
         self.cover = _cover_spheres(self.boxes[2])
         finger = np.isin(self.cover[2], self.finger_links + 1)  # the cover is sorted by link
@@ -158,8 +180,9 @@ class GraspWorld:
             for i, joint in enumerate(finger.joints):
                 origin = np.array(self._call(pybullet.getLinkState, self.body, self.joint_index[joint])[4])
                 for k in range(i, len(columns)):
-                    table[i, k] = 1.0 if joint in self.prismatic else \
-                        np.linalg.norm(corners[columns[k]] - origin, axis=1).max()
+                    table[i, k] = (
+                        1.0 if joint in self.prismatic else np.linalg.norm(corners[columns[k]] - origin, axis=1).max()
+                    )
             levers.append(table)
         return levers
 
@@ -201,7 +224,8 @@ class GraspWorld:
         finger, starts = self.finger_cover
         distances = np.full(len(centres), np.inf)
         distances[owner[finger][starts]] = np.minimum.reduceat(
-            self.interior.distance_bound(spheres[finger]) - radii[finger], starts)
+            self.interior.distance_bound(spheres[finger]) - radii[finger], starts
+        )
         distances[~wanted] = np.inf  # stopped fingers: their exact distances would cost the most
         for slot in np.flatnonzero(distances < self.near):
             corners = _box_corners(centres[slot], rotations[slot], self.boxes[2][slot])
@@ -230,8 +254,9 @@ class GraspWorld:
         gap, _ = self.tree.query(spheres, k=1, distance_upper_bound=radii.max())
         gap = gap.reshape(len(offsets), -1)
         # a sample in a cell's inscribed sphere lies on the mesh and inside a link
-        colliding = self.interior.contains(spheres).reshape(len(offsets), -1).any(axis=1) | \
-            (gap < inscribed).any(axis=1)
+        colliding = self.interior.contains(spheres).reshape(len(offsets), -1).any(axis=1) | (gap < inscribed).any(
+            axis=1
+        )
         unsure = gap <= radii
         spheres = spheres.reshape(len(offsets), -1, 3)
         for step in np.flatnonzero(~colliding):
@@ -240,8 +265,11 @@ class GraspWorld:
             self._place(base - offsets[step] * approach, quaternion)
             # only the links near the mesh: a query's cost grows with the triangles in its box
             links = np.unique(self.cover[2][unsure[step]]) - 1
-            if any(hit[8] < 0 for link in links for hit in self._call(
-                    pybullet.getClosestPoints, self.body, self.object, 0.0, linkIndexA=int(link))):
+            if any(
+                hit[8] < 0
+                for link in links
+                for hit in self._call(pybullet.getClosestPoints, self.body, self.object, 0.0, linkIndexA=int(link))
+            ):
                 continue
             # no link crosses the mesh; near the surface the samples' normals tell inside from out
             # (a sphere clear of the samples is outside, or deep enough for the interior voxels)
@@ -264,8 +292,9 @@ class GraspWorld:
     def trial(self, grasp_point, approach, orient, preshape=None):
         """Run one grasp trial; returns a :class:`TrialResult` (pybullet failures -> ``error``)."""
         try:
-            return self._trial(np.asarray(grasp_point, float), np.asarray(approach, float),
-                               np.asarray(orient, float), preshape)
+            return self._trial(
+                np.asarray(grasp_point, float), np.asarray(approach, float), np.asarray(orient, float), preshape
+            )
         except Exception as err:  # noqa: BLE001 - one failed trial is counted, never kills the run
             return TrialResult("error", message=f"{type(err).__name__}: {err}")
 
@@ -282,29 +311,57 @@ class GraspWorld:
         base = base - cleared * approach
         self._place(base, quaternion)
         joints = self._close(joints)
-        hits = [hit for link in self._touching_links()
-                for hit in self._call(pybullet.getClosestPoints, self.body, self.object, self.touch, linkIndexA=link)]
-        pose = dict(retract_m=float(cleared), base_position=tuple(base), base_orientation=tuple(quaternion),
-                    joint_positions=tuple(joints[name] for name in self.hand.limits))
+        hits = [
+            hit
+            for link in self._touching_links()
+            for hit in self._call(pybullet.getClosestPoints, self.body, self.object, self.touch, linkIndexA=link)
+        ]
+        pose = dict(
+            retract_m=float(cleared),
+            base_position=tuple(base),
+            base_orientation=tuple(quaternion),
+            joint_positions=tuple(joints[name] for name in self.hand.limits),
+        )
         if not hits:
             return TrialResult("no_contact", **pose)
-        points, links = _patch_ends(np.array([hit[6] for hit in hits]), np.array([hit[3] for hit in hits]),
-                                    np.array([hit[8] for hit in hits]))
+        points, links = _patch_ends(
+            np.array([hit[6] for hit in hits]), np.array([hit[3] for hit in hits]), np.array([hit[8] for hit in hits])
+        )
         _, nearest = self.tree.query(points, k=1)
         normals = self.sample_normals[nearest]
-        quality = epsilon_quality(points, -normals, mu=self.mu, edges=self.cone_edges,
-                                  torque_scale=self.torque_scale, torsional_friction=self.torsional_friction,
-                                  center=self.centre)
+        quality = epsilon_quality(
+            points,
+            -normals,
+            mu=self.mu,
+            edges=self.cone_edges,
+            torque_scale=self.torque_scale,
+            torsional_friction=self.torsional_friction,
+            center=self.centre,
+        )
         outcome = "force_closure" if quality.force_closure else "no_force_closure"
-        return TrialResult(outcome, quality.epsilon, quality.volume, contact_points=points, contact_normals=normals,
-                           contact_links=links, **pose)
+        return TrialResult(
+            outcome,
+            quality.epsilon,
+            quality.volume,
+            contact_points=points,
+            contact_normals=normals,
+            contact_links=links,
+            **pose,
+        )
 
     def _close(self, joints):
         """Close all fingers from ``joints`` (name -> value) by conservative advancement against
         the surface samples; returns the closed joint values."""
         joints = dict(joints)
-        fingers = [(finger, np.array([self.joint_index[joint] + 1 for joint in finger.joints]),
-                    np.ones(len(finger.joints), bool), levers) for finger, levers in zip(self.hand.fingers, self.levers)]
+        fingers = [
+            (
+                finger,
+                np.array([self.joint_index[joint] + 1 for joint in finger.joints]),
+                np.ones(len(finger.joints), bool),
+                levers,
+            )
+            for finger, levers in zip(self.hand.fingers, self.levers)
+        ]
         cache = {}
         for _ in range(_MAX_CLOSE_STEPS):
             if not any(moving.any() for _, _, moving, _ in fingers):
@@ -312,7 +369,7 @@ class GraspWorld:
             wanted = np.zeros(len(self.links), bool)  # the links that moving joints carry
             for _, columns, moving, _ in fingers:
                 if moving.any():
-                    wanted[columns[np.argmax(moving):]] = True
+                    wanted[columns[np.argmax(moving) :]] = True
             distances = self._finger_distances(cache, wanted)
             moved = {}
             for finger, columns, moving, levers in fingers:
@@ -403,8 +460,7 @@ def _half_extents(geometry, dimensions, hand_name):
     if geometry in (pybullet.GEOM_CAPSULE, pybullet.GEOM_CYLINDER):
         length, radius = dimensions[0], dimensions[1]
         return np.array([radius, radius, length / 2 + (radius if geometry == pybullet.GEOM_CAPSULE else 0)])
-    raise BadParamsError(f"hand {hand_name}: finger links must use box, sphere, capsule or cylinder "
-                         "collision shapes")
+    raise BadParamsError(f"hand {hand_name}: finger links must use box, sphere, capsule or cylinder collision shapes")
 
 
 def _cover_spheres(halves, max_cell=0.02):
@@ -437,9 +493,19 @@ def _box_corners(centre, rotation, half):
 def _matrices(quaternions):
     """(n, 4) unit quaternions (x, y, z, w) -> (n, 3, 3) rotation matrices."""
     x, y, z, w = quaternions.T
-    return np.column_stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
-                            2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
-                            2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]).reshape(-1, 3, 3)
+    return np.column_stack(
+        [
+            1 - 2 * (y * y + z * z),
+            2 * (x * y - z * w),
+            2 * (x * z + y * w),
+            2 * (x * y + z * w),
+            1 - 2 * (x * x + z * z),
+            2 * (y * z - x * w),
+            2 * (x * z - y * w),
+            2 * (y * z + x * w),
+            1 - 2 * (x * x + y * y),
+        ]
+    ).reshape(-1, 3, 3)
 
 
 def _patch_ends(points, links, distances, min_length=0.002):

@@ -17,21 +17,46 @@ from .artefacts import atomic_path, json_ready
 
 _NUMBER = {"type": "number"}
 SCHEMAS = {
-    "/stage": {"type": "object", "properties": {"stage": {"type": "string"},
-                                                "event": {"type": "string", "enum": ["start", "end"]}}},
+    "/stage": {
+        "type": "object",
+        "properties": {"stage": {"type": "string"}, "event": {"type": "string", "enum": ["start", "end"]}},
+    },
     "/params": {"type": "object", "description": "the params the stage used"},
-    "/artefacts": {"type": "object", "properties": {"role": {"type": "string", "enum": ["input", "output"]},
-                                                    "path": {"type": "string"}, "sha256": {"type": "string"},
-                                                    "bytes": {"type": "integer"}}},
+    "/artefacts": {
+        "type": "object",
+        "properties": {
+            "role": {"type": "string", "enum": ["input", "output"]},
+            "path": {"type": "string"},
+            "sha256": {"type": "string"},
+            "bytes": {"type": "integer"},
+        },
+    },
     "/counts": {"type": "object", "description": "sizes of what the stage made"},
-    "/timing": {"type": "object", "properties": {"stage": {"type": "string"}, "seconds": _NUMBER,
-                                                 "process_seconds": _NUMBER, "record_seconds": _NUMBER}},
+    "/timing": {
+        "type": "object",
+        "properties": {
+            "stage": {"type": "string"},
+            "seconds": _NUMBER,
+            "process_seconds": _NUMBER,
+            "record_seconds": _NUMBER,
+        },
+    },
     "/warning": {"type": "object", "properties": {"message": {"type": "string"}}},
-    "/modules": {"type": "object", "properties": {"modules": {"type": "array", "items": {"type": "string"}}},
-                 "description": "the pipeline modules the stage loaded"},
-    "/trials": {"type": "object", "description": "one grasp trial: every column of trials.parquet",
-                "properties": {"hand": {"type": "string"}, "planner": {"type": "string"},
-                               "outcome": {"type": "string"}, "epsilon": _NUMBER}},
+    "/modules": {
+        "type": "object",
+        "properties": {"modules": {"type": "array", "items": {"type": "string"}}},
+        "description": "the pipeline modules the stage loaded",
+    },
+    "/trials": {
+        "type": "object",
+        "description": "one grasp trial: every column of trials.parquet",
+        "properties": {
+            "hand": {"type": "string"},
+            "planner": {"type": "string"},
+            "outcome": {"type": "string"},
+            "epsilon": _NUMBER,
+        },
+    },
 }
 
 
@@ -44,13 +69,17 @@ class McapLog:
     def log(self, topic, message):
         """Write ``message`` (a JSON-able dict; numpy values allowed) on ``topic``."""
         if topic not in self.channels:
-            schema = self.writer.register_schema(name=topic.strip("/"), encoding="jsonschema",
-                                                 data=json.dumps(SCHEMAS[topic]).encode())
-            self.channels[topic] = self.writer.register_channel(topic=topic, message_encoding="json",
-                                                                schema_id=schema)
+            schema = self.writer.register_schema(
+                name=topic.strip("/"), encoding="jsonschema", data=json.dumps(SCHEMAS[topic]).encode()
+            )
+            self.channels[topic] = self.writer.register_channel(topic=topic, message_encoding="json", schema_id=schema)
         now = time.time_ns()
-        self.writer.add_message(self.channels[topic], log_time=now, publish_time=now,
-                                data=json.dumps(json_ready(message), default=str, allow_nan=False).encode())
+        self.writer.add_message(
+            self.channels[topic],
+            log_time=now,
+            publish_time=now,
+            data=json.dumps(json_ready(message), default=str, allow_nan=False).encode(),
+        )
 
     def artefact(self, role, path):
         """An ``/artefacts`` message: ``role`` ("input" or "output"), the path, its size and SHA-256."""
@@ -94,5 +123,7 @@ def read_log(path):
     from mcap.reader import make_reader
 
     with open(path, "rb") as stream:
-        return [(channel.topic, json.loads(message.data))
-                for _, channel, message in make_reader(stream).iter_messages(log_time_order=True)]
+        return [
+            (channel.topic, json.loads(message.data))
+            for _, channel, message in make_reader(stream).iter_messages(log_time_order=True)
+        ]

@@ -44,8 +44,9 @@ def nearest_samples(surface_points, centers, *, count, search="kdtree", kdtree_e
     if search == "kdtree":
         # float32 tree for speed; distances are recomputed in float64 (the order is float32's,
         # so near-ties may swap: callers take the minimum, not the first)
-        _, indices = KDTree(surface_points.astype(np.float32)).query(centers.astype(np.float32), k=count,
-                                                                     eps=kdtree_eps)
+        _, indices = KDTree(surface_points.astype(np.float32)).query(
+            centers.astype(np.float32), k=count, eps=kdtree_eps
+        )
         indices = indices.reshape(len(centers), count).astype(np.int64)
         return np.linalg.norm(surface_points[indices] - centers[:, None, :], axis=2), indices
     grid = CellGrid.build(surface_points, cell_density=cell_density)
@@ -116,13 +117,13 @@ def reconstruct(surface, axis, *, tau=0.01, max_contacts=4, search="kdtree", kdt
     -------
     MedialSpheres
     """
-    params = dict(tau=tau, max_contacts=max_contacts, search=search, kdtree_eps=kdtree_eps,
-                  cell_density=cell_density)
+    params = dict(tau=tau, max_contacts=max_contacts, search=search, kdtree_eps=kdtree_eps, cell_density=cell_density)
     points = surface.points
     centers = as_points("medial axis centers", axis.centers)
     defining = np.array(axis.contacts)
-    distances, nearest = nearest_samples(points, centers, count=max_contacts, search=search,
-                                         kdtree_eps=kdtree_eps, cell_density=cell_density)
+    distances, nearest = nearest_samples(
+        points, centers, count=max_contacts, search=search, kdtree_eps=kdtree_eps, cell_density=cell_density
+    )
     closest = np.argmin(distances, axis=1)
     radii = np.minimum(distances[np.arange(len(centers)), closest], axis.radii)
     touch_limit = radii[:, None] * (1.0 + tau)
@@ -143,6 +144,10 @@ def reconstruct(surface, axis, *, tau=0.01, max_contacts=4, search="kdtree", kdt
     if not solid.any():
         raise DegenerateGeometryError(f"{surface.source}: no medial sphere lies inside the surface")
     centers, radii, contacts = centers[solid], radii[solid], contacts[solid]
-    return MedialSpheres(centers=centers, radii=radii, contacts=contacts,
-                         object_angle=object_angle(centers, points, contacts),
-                         key=content_key("mat", params, surface.key, axis.key))
+    return MedialSpheres(
+        centers=centers,
+        radii=radii,
+        contacts=contacts,
+        object_angle=object_angle(centers, points, contacts),
+        key=content_key("mat", params, surface.key, axis.key),
+    )

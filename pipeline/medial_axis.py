@@ -28,8 +28,9 @@ from .errors import BadInputError, DegenerateGeometryError
 POLISH_EPS = 0.0  # exact: the polish pass is what makes radii and centres accurate
 
 
-def shrinking_ball(points, normals, *, eps=0.2, min_chord=0.0, min_separation=0.0, max_iterations=30,
-                   samples=None, initial_radii=None):
+def shrinking_ball(
+    points, normals, *, eps=0.2, min_chord=0.0, min_separation=0.0, max_iterations=30, samples=None, initial_radii=None
+):
     """Shrinking-ball medial axis: one inner ball per sample.
 
     A ball touching sample ``p`` with centre ``p - r n`` that contains sample ``q`` is
@@ -87,15 +88,21 @@ def shrinking_ball(points, normals, *, eps=0.2, min_chord=0.0, min_separation=0.
         q_index = np.where(self_hit, neighbour[:, 1], neighbour[:, 0]).astype(np.int64)
         q_distance = np.linalg.norm(points[q_index] - centre, axis=1)
         chord_vector = points[active] - points[q_index]
-        chord_sq = (chord_vector ** 2).sum(axis=1)
+        chord_sq = (chord_vector**2).sum(axis=1)
         denominator = 2.0 * (normals[active] * chord_vector).sum(axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):
             new_radius = chord_sq / denominator
         empty = q_distance >= radii[active] * (1.0 - 1e-12)
         # separation angle of p and q from the new centre: sin(angle / 2) = chord / (2 r)
         separated = chord_sq >= (2.0 * new_radius * np.sin(min_separation / 2.0)) ** 2
-        shrinks = (~empty & (chord_sq >= min_chord ** 2) & separated & (denominator > 0)
-                   & (new_radius < radii[active]) & (new_radius > 0))
+        shrinks = (
+            ~empty
+            & (chord_sq >= min_chord**2)
+            & separated
+            & (denominator > 0)
+            & (new_radius < radii[active])
+            & (new_radius > 0)
+        )
         # a ball is formed once it is empty or once a shrink step was taken from it
         formed[active[empty]] = True
         second[active[empty]] = q_index[empty]
@@ -220,7 +227,7 @@ def voronoi_poles(points, normals):
     determinant = np.linalg.det(edges)
     solid = np.abs(determinant) > 1e-12 * np.einsum("tij,tij->t", edges, edges) ** 1.5
     simplices, corner, edges = simplices[solid], corner[solid], edges[solid]
-    offset = np.linalg.solve(2.0 * edges, (edges ** 2).sum(axis=2)[..., None])[..., 0]
+    offset = np.linalg.solve(2.0 * edges, (edges**2).sum(axis=2)[..., None])[..., 0]
     circumcentre = corner[:, 0] + offset
     circumradius = np.linalg.norm(offset, axis=1)
     diagonal = np.linalg.norm(np.ptp(points, axis=0))
@@ -236,8 +243,17 @@ def voronoi_poles(points, normals):
     return circumcentre[pole_tet], circumradius[pole_tet], pole_sample, simplices[pole_tet]
 
 
-def medial_axis(surface, *, method="shrinking_ball", kdtree_eps=4.0, min_chord_factor=4.0, min_separation_deg=20.0,
-                max_iterations=30, merge_factor=0.5, merge_relative=0.01):
+def medial_axis(
+    surface,
+    *,
+    method="shrinking_ball",
+    kdtree_eps=4.0,
+    min_chord_factor=4.0,
+    min_separation_deg=20.0,
+    max_iterations=30,
+    merge_factor=0.5,
+    merge_relative=0.01,
+):
     """The ``medial_axis`` stage as a pure function.
 
     Balls are grown (approximate queries for speed), balls of nearly the same centre and
@@ -265,12 +281,21 @@ def medial_axis(surface, *, method="shrinking_ball", kdtree_eps=4.0, min_chord_f
     -------
     MedialAxis
     """
-    params = dict(method=method, kdtree_eps=kdtree_eps, min_chord_factor=min_chord_factor,
-                  min_separation_deg=min_separation_deg, max_iterations=max_iterations,
-                  merge_factor=merge_factor, merge_relative=merge_relative)
+    params = dict(
+        method=method,
+        kdtree_eps=kdtree_eps,
+        min_chord_factor=min_chord_factor,
+        min_separation_deg=min_separation_deg,
+        max_iterations=max_iterations,
+        merge_factor=merge_factor,
+        merge_relative=merge_relative,
+    )
     points, normals = surface.points, surface.normals
-    shrink = dict(min_chord=min_chord_factor * surface.spacing, min_separation=np.radians(min_separation_deg),
-                  max_iterations=max_iterations)
+    shrink = dict(
+        min_chord=min_chord_factor * surface.spacing,
+        min_separation=np.radians(min_separation_deg),
+        max_iterations=max_iterations,
+    )
     if method == "shrinking_ball":
         centers, radii, sample_index, second = shrinking_ball(points, normals, eps=kdtree_eps, **shrink)
         defining = np.stack([sample_index, second], axis=1)
@@ -284,13 +309,24 @@ def medial_axis(surface, *, method="shrinking_ball", kdtree_eps=4.0, min_chord_f
     spread = spread_contacts(centers[keep], points, group, defining)
     centers, radii, sample_index, defining = centers[keep], radii[keep], sample_index[keep], defining[keep]
     if method == "shrinking_ball":
-        _, radii, _, second = shrinking_ball(points, normals, eps=POLISH_EPS, samples=sample_index,
-                                             initial_radii=radii, **shrink)
+        _, radii, _, second = shrinking_ball(
+            points, normals, eps=POLISH_EPS, samples=sample_index, initial_radii=radii, **shrink
+        )
         centers = points[sample_index] - radii[:, None] * normals[sample_index]
         defining[:, 1] = np.where(second >= 0, second, defining[:, 1])
         inner = inner_balls(points, normals, centers)
-        centers, radii, sample_index, defining, spread = (centers[inner], radii[inner], sample_index[inner],
-                                                          defining[inner], spread[inner])
-    return MedialAxis(centers=centers, radii=radii, sample_index=sample_index,
-                      contacts=np.concatenate([defining, spread], axis=1),
-                      method=method, key=content_key("medial_axis", params, surface.key))
+        centers, radii, sample_index, defining, spread = (
+            centers[inner],
+            radii[inner],
+            sample_index[inner],
+            defining[inner],
+            spread[inner],
+        )
+    return MedialAxis(
+        centers=centers,
+        radii=radii,
+        sample_index=sample_index,
+        contacts=np.concatenate([defining, spread], axis=1),
+        method=method,
+        key=content_key("medial_axis", params, surface.key),
+    )

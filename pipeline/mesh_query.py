@@ -31,7 +31,9 @@ def _edge_points(vertices, faces, face_normals, spacing):
     owner = np.repeat(np.arange(len(start)), np.maximum(counts, 0))
     if not len(owner):
         return np.zeros((0, 3)), np.zeros((0, 3))
-    rank = np.arange(len(owner)) - np.repeat(np.cumsum(np.maximum(counts, 0)) - np.maximum(counts, 0), np.maximum(counts, 0))
+    rank = np.arange(len(owner)) - np.repeat(
+        np.cumsum(np.maximum(counts, 0)) - np.maximum(counts, 0), np.maximum(counts, 0)
+    )
     fraction = (rank + 1) / (counts[owner] + 1)
     points = start[owner] + fraction[:, None] * (end - start)[owner]
     normals = face_normals[pairs[bent][owner, 0]] + face_normals[pairs[bent][owner, 1]]
@@ -72,8 +74,9 @@ class ObjectMesh:
         normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
         self.face_normals = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
         self.scene = open3d.t.geometry.RaycastingScene()
-        self.scene.add_triangles(open3d.core.Tensor(self.vertices.astype(np.float32)),
-                                 open3d.core.Tensor(self.faces.astype(np.uint32)))
+        self.scene.add_triangles(
+            open3d.core.Tensor(self.vertices.astype(np.float32)), open3d.core.Tensor(self.faces.astype(np.uint32))
+        )
         # vertex normals (area weighted) orient contacts found at mesh vertices
         accumulated = np.zeros_like(self.vertices)
         for corner in range(3):
@@ -108,7 +111,10 @@ class ObjectMesh:
         # open3d answers in float32: project again in float64 onto the triangle's plane
         on_mesh = answer["points"].numpy().astype(np.float64)
         normals = self.face_normals[triangles]
-        on_plane = on_mesh - np.einsum("ij,ij->i", on_mesh - self.vertices[self.faces[triangles, 0]], normals)[:, None] * normals
+        on_plane = (
+            on_mesh
+            - np.einsum("ij,ij->i", on_mesh - self.vertices[self.faces[triangles, 0]], normals)[:, None] * normals
+        )
         return Closest(on_plane, triangles, normals, np.linalg.norm(points - on_plane, axis=1))
 
     def distance(self, points):

@@ -37,13 +37,12 @@ loop's largest extent from the loop's best-fit plane (0.01: 0.1 mm on a 1 cm tub
 _PRIMITIVES = {
     "box": lambda extents=(0.10, 0.06, 0.02): trimesh.creation.box(extents=extents),
     "plate": lambda extents=(0.10, 0.10, 0.006): trimesh.creation.box(extents=extents),
-    "capsule": lambda radius=0.02, height=0.10: trimesh.creation.capsule(height=height, radius=radius,
-                                                                          count=[64, 256]),
-    "cylinder": lambda radius=0.025, height=0.12: trimesh.creation.cylinder(radius=radius, height=height,
-                                                                            sections=256),
+    "capsule": lambda radius=0.02, height=0.10: trimesh.creation.capsule(height=height, radius=radius, count=[64, 256]),
+    "cylinder": lambda radius=0.025, height=0.12: trimesh.creation.cylinder(radius=radius, height=height, sections=256),
     "sphere": lambda radius=0.04: trimesh.creation.icosphere(subdivisions=5, radius=radius),
     "torus": lambda major_radius=0.05, minor_radius=0.012: trimesh.creation.torus(
-        major_radius=major_radius, minor_radius=minor_radius, major_sections=256, minor_sections=128),
+        major_radius=major_radius, minor_radius=minor_radius, major_sections=256, minor_sections=128
+    ),
 }
 
 
@@ -73,13 +72,19 @@ def mesh_files(folder):
     folder : Path
     files : list of (Path relative to folder, absolute resolved Path), never empty
     """
-    folder = pybullet_path(str(folder).removeprefix("pybullet:")) if str(folder).startswith("pybullet:") \
-        else Path(folder)
+    folder = (
+        pybullet_path(str(folder).removeprefix("pybullet:")) if str(folder).startswith("pybullet:") else Path(folder)
+    )
     if not folder.is_dir():
         raise BadInputError(f"{folder}: not a folder")
-    relatives = sorted((path.relative_to(folder) for path in folder.rglob("*")
-                        if path.suffix.lower() in MESH_SUFFIXES and path.is_file()),
-                       key=lambda path: (natural_key(path), str(path)))
+    relatives = sorted(
+        (
+            path.relative_to(folder)
+            for path in folder.rglob("*")
+            if path.suffix.lower() in MESH_SUFFIXES and path.is_file()
+        ),
+        key=lambda path: (natural_key(path), str(path)),
+    )
     if not relatives:
         raise BadInputError(f"{folder}: holds no mesh ({', '.join(sorted(MESH_SUFFIXES))})")
     return folder, [(relative, (folder / relative).resolve()) for relative in relatives]
@@ -155,8 +160,9 @@ def load_source(source, *, scale=1.0, shape=None):
     if not path.is_file():
         raise BadInputError(f"{path}: file not found")
     if path.suffix.lower() not in MESH_SUFFIXES:
-        raise BadInputError(f"{path}: unsupported format '{path.suffix}' "
-                            f"(use one of {', '.join(sorted(MESH_SUFFIXES))})")
+        raise BadInputError(
+            f"{path}: unsupported format '{path.suffix}' (use one of {', '.join(sorted(MESH_SUFFIXES))})"
+        )
     if path.stat().st_size == 0:
         raise BadInputError(f"{path}: file is empty")
     try:
@@ -169,7 +175,8 @@ def load_source(source, *, scale=1.0, shape=None):
             raise BadInputError(f"{path}: holds no triangles")
         loaded = trimesh.util.concatenate(geometries)
     if isinstance(loaded, trimesh.PointCloud) or (
-            isinstance(loaded, trimesh.Trimesh) and len(loaded.faces) == 0 and len(loaded.vertices)):
+        isinstance(loaded, trimesh.Trimesh) and len(loaded.faces) == 0 and len(loaded.vertices)
+    ):
         points, normals = _read_cloud(path)
         return ("cloud", points * scale, normals)
     if not isinstance(loaded, trimesh.Trimesh):
@@ -194,9 +201,11 @@ def check_size(points, *, name, min_extent, max_extent):
     """
     diagonal = float(np.linalg.norm(np.ptp(np.asarray(points), axis=0)))
     if not min_extent <= diagonal <= max_extent:
-        raise BadInputError(f"{name}: bounding-box diagonal {diagonal:.4g} m is outside "
-                            f"[{min_extent:g}, {max_extent:g}] m: wrong units? (for a mesh in millimetres pass "
-                            "--scale 0.001, or set the object's scale in params.yaml)")
+        raise BadInputError(
+            f"{name}: bounding-box diagonal {diagonal:.4g} m is outside "
+            f"[{min_extent:g}, {max_extent:g}] m: wrong units? (for a mesh in millimetres pass "
+            "--scale 0.001, or set the object's scale in params.yaml)"
+        )
     return diagonal
 
 
@@ -243,20 +252,26 @@ def validate_mesh(mesh, *, name, min_extent, max_extent):
     if not mesh.is_watertight:
         edge_uses = np.bincount(mesh.edges_unique_inverse, minlength=len(mesh.edges_unique))
         open_edges, shared = int((edge_uses == 1).sum()), int((edge_uses > 2).sum())
-        raise BadInputError(f"{name}: surface is not closed ({open_edges} open edges, "
-                            f"{shared} edges shared by more than 2 triangles); repair it to a watertight mesh")
+        raise BadInputError(
+            f"{name}: surface is not closed ({open_edges} open edges, "
+            f"{shared} edges shared by more than 2 triangles); repair it to a watertight mesh"
+        )
     bodies = mesh.split(only_watertight=False)
     if len(bodies) > 1:
         mesh = _unite(bodies, name)
     with np.errstate(divide="ignore", invalid="ignore"):  # trimesh's centre of mass divides by the volume
         volume = mesh.volume
-    if not abs(volume) > 1e-12 * diagonal ** 3:  # e.g. a flat sheet, whose outline was capped
+    if not abs(volume) > 1e-12 * diagonal**3:  # e.g. a flat sheet, whose outline was capped
         raise BadInputError(f"{name}: encloses zero volume")
     if volume < 0:
         mesh.invert()
     if capped_edges:  # a cup modelled as one sheet is now the solid it bounds: say so
-        warnings.warn(f"{name}: open surface closed by capping its planar holes ({capped_edges} open edges); "
-                      "check that it is meant to be that solid", RepairWarning, stacklevel=2)
+        warnings.warn(
+            f"{name}: open surface closed by capping its planar holes ({capped_edges} open edges); "
+            "check that it is meant to be that solid",
+            RepairWarning,
+            stacklevel=2,
+        )
     return mesh
 
 
@@ -286,8 +301,7 @@ def cap_planar_holes(mesh, *, planarity=CAP_PLANARITY):
     """
     open_edges = mesh.edges[trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)]  # directed as in faces
     tails, heads = open_edges[:, 0], open_edges[:, 1]
-    if len(open_edges) == 0 or len(np.unique(tails)) < len(tails) or not np.array_equal(np.sort(tails),
-                                                                                         np.sort(heads)):
+    if len(open_edges) == 0 or len(np.unique(tails)) < len(tails) or not np.array_equal(np.sort(tails), np.sort(heads)):
         return mesh  # no loop, or a vertex on two holes, or a hole wound both ways
     successor = dict(zip(tails.tolist(), heads.tolist()))
     vertices, centres, caps = np.asarray(mesh.vertices), [], []
@@ -319,14 +333,18 @@ def _unite(bodies, name):
     for body in bodies:
         if body.volume < 0:
             body.invert()
-        solid = manifold3d.Manifold(manifold3d.Mesh(vert_properties=np.asarray(body.vertices, np.float32),
-                                                    tri_verts=np.asarray(body.faces, np.uint32)))
+        solid = manifold3d.Manifold(
+            manifold3d.Mesh(
+                vert_properties=np.asarray(body.vertices, np.float32), tri_verts=np.asarray(body.faces, np.uint32)
+            )
+        )
         if solid.status() != manifold3d.Error.NoError:
             raise BadInputError(f"{name}: body cannot be united ({solid.status().name})")
         solids.append(solid)
     union = manifold3d.Manifold.batch_boolean(solids, manifold3d.OpType.Add).to_mesh()
-    return trimesh.Trimesh(np.asarray(union.vert_properties[:, :3], np.float64),
-                           np.asarray(union.tri_verts, np.int64), process=True)
+    return trimesh.Trimesh(
+        np.asarray(union.vert_properties[:, :3], np.float64), np.asarray(union.tri_verts, np.int64), process=True
+    )
 
 
 def parse_spec(name, spec):

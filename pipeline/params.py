@@ -36,8 +36,12 @@ class SampleParams:
     def __post_init__(self):
         _require(self.count >= 100, "sample", "count", "must be >= 100")
         _require(0 < self.sharp_angle_deg < 180, "sample", "sharp_angle_deg", "must be in (0, 180)")
-        _require(0 < self.min_extent_m < self.max_extent_m, "sample", "min_extent_m",
-                 "must be positive and below max_extent_m")
+        _require(
+            0 < self.min_extent_m < self.max_extent_m,
+            "sample",
+            "min_extent_m",
+            "must be positive and below max_extent_m",
+        )
         _require(self.cloud_normal_neighbours >= 5, "sample", "cloud_normal_neighbours", "must be >= 5")
 
 
@@ -61,8 +65,12 @@ class MedialAxisParams:
     """...and whose radii agree within this fraction; the voxel grows to this fraction of r."""
 
     def __post_init__(self):
-        _require(self.method in ("shrinking_ball", "voronoi_poles"), "medial_axis", "method",
-                 f"must be 'shrinking_ball' or 'voronoi_poles', got {self.method!r}")
+        _require(
+            self.method in ("shrinking_ball", "voronoi_poles"),
+            "medial_axis",
+            "method",
+            f"must be 'shrinking_ball' or 'voronoi_poles', got {self.method!r}",
+        )
         _require(self.kdtree_eps >= 0, "medial_axis", "kdtree_eps", "must be >= 0")
         _require(self.min_chord_factor >= 0, "medial_axis", "min_chord_factor", "must be >= 0")
         _require(0 <= self.min_separation_deg < 180, "medial_axis", "min_separation_deg", "must be in [0, 180)")
@@ -89,8 +97,7 @@ class MatParams:
     def __post_init__(self):
         _require(0 <= self.tau < 1, "mat", "tau", "must be in [0, 1)")
         _require(self.max_contacts >= 2, "mat", "max_contacts", "must be >= 2")
-        _require(self.search in ("kdtree", "grid"), "mat", "search",
-                 f"must be 'kdtree' or 'grid', got {self.search!r}")
+        _require(self.search in ("kdtree", "grid"), "mat", "search", f"must be 'kdtree' or 'grid', got {self.search!r}")
         _require(self.kdtree_eps >= 0, "mat", "kdtree_eps", "must be >= 0")
         _require(self.cell_density > 0, "mat", "cell_density", "must be > 0")
 
@@ -131,10 +138,18 @@ class ClassifyParams:
         _require(self.min_diameter_m >= 0, "classify", "min_diameter_m", "must be >= 0")
         _require(0 < self.max_diameter_ratio <= 1, "classify", "max_diameter_ratio", "must be in (0, 1]")
         _require(self.search_radius > 0, "classify", "search_radius", "must be > 0")
-        _require(self.search_radius_unit in ("relative", "metres"), "classify", "search_radius_unit",
-                 f"must be 'relative' or 'metres', got {self.search_radius_unit!r}")
-        _require(0 < self.rho_axis < self.rho_plane <= 1, "classify", "rho_axis",
-                 "must satisfy 0 < rho_axis < rho_plane <= 1")
+        _require(
+            self.search_radius_unit in ("relative", "metres"),
+            "classify",
+            "search_radius_unit",
+            f"must be 'relative' or 'metres', got {self.search_radius_unit!r}",
+        )
+        _require(
+            0 < self.rho_axis < self.rho_plane <= 1,
+            "classify",
+            "rho_axis",
+            "must satisfy 0 < rho_axis < rho_plane <= 1",
+        )
         _require(self.isolated_spread >= 0, "classify", "isolated_spread", "must be >= 0")
         _require(0 <= self.pca_cell_fraction <= 1, "classify", "pca_cell_fraction", "must be in [0, 1]")
 
@@ -153,10 +168,12 @@ class CandidatesParams:
     def __post_init__(self):
         from .hands import HANDS, is_spec_path
 
-        _require(isinstance(self.hands, list) and self.hands
-                 and all(h in HANDS or is_spec_path(h) for h in self.hands),
-                 "candidates", "hands", f"must list built-in hands ({', '.join(HANDS)}) or hand spec files, "
-                 f"got {self.hands!r}")
+        _require(
+            isinstance(self.hands, list) and self.hands and all(h in HANDS or is_spec_path(h) for h in self.hands),
+            "candidates",
+            "hands",
+            f"must list built-in hands ({', '.join(HANDS)}) or hand spec files, got {self.hands!r}",
+        )
         _require(self.approach_directions >= 1, "candidates", "approach_directions", "must be >= 1")
 
 
@@ -207,23 +224,41 @@ class SimulateParams:
         _require(self.mu >= 0, "simulate", "mu", "must be >= 0")
         _require(self.cone_edges >= 3, "simulate", "cone_edges", "must be >= 3")
         _require(self.torsional_friction_m >= 0, "simulate", "torsional_friction_m", "must be >= 0")
-        for key in ("contact_tolerance_m", "retract_step_m", "retract_max_m", "approach_step_m", "near_m",
-                    "link_point_spacing_m", "coplanar_deg"):
+        for key in (
+            "contact_tolerance_m",
+            "retract_step_m",
+            "retract_max_m",
+            "approach_step_m",
+            "near_m",
+            "link_point_spacing_m",
+            "coplanar_deg",
+        ):
             _require(getattr(self, key) > 0, "simulate", key, "must be > 0")
-        _require(self.approach_step_m <= self.contact_tolerance_m, "simulate", "approach_step_m",
-                 "must be at most contact_tolerance_m (a step must not jump past a touch)")
+        _require(
+            self.approach_step_m <= self.contact_tolerance_m,
+            "simulate",
+            "approach_step_m",
+            "must be at most contact_tolerance_m (a step must not jump past a touch)",
+        )
         _require(self.near_m >= self.contact_tolerance_m, "simulate", "near_m", "must be at least contact_tolerance_m")
         _require(self.max_close_steps >= 1, "simulate", "max_close_steps", "must be >= 1")
-        _require(self.max_link_contacts == 0 or self.max_link_contacts >= 2, "simulate", "max_link_contacts",
-                 "must be 0 (every corner) or >= 2")
+        _require(
+            self.max_link_contacts == 0 or self.max_link_contacts >= 2,
+            "simulate",
+            "max_link_contacts",
+            "must be 0 (every corner) or >= 2",
+        )
         _require(self.grid_cells >= 8, "simulate", "grid_cells", "must be >= 8")
         _require(self.workers >= 0, "simulate", "workers", "must be >= 0")
 
     def world_settings(self):
         """Keyword arguments of :class:`pipeline.simulation.GraspEngine` (its TrialSettings):
         every field but the protocol's."""
-        return {field.name: getattr(self, field.name) for field in dataclasses.fields(self)
-                if field.name not in ("spheres_per_object", "baseline_trials", "workers")}
+        return {
+            field.name: getattr(self, field.name)
+            for field in dataclasses.fields(self)
+            if field.name not in ("spheres_per_object", "baseline_trials", "workers")
+        }
 
 
 @dataclass(frozen=True)
@@ -238,8 +273,12 @@ class ReportParams:
     """Bins of the epsilon histograms (``report/plots/epsilon.csv``)."""
 
     def __post_init__(self):
-        _require(all(isinstance(name, str) for name in self.figure_objects), "report", "figure_objects",
-                 "must list object names")
+        _require(
+            all(isinstance(name, str) for name in self.figure_objects),
+            "report",
+            "figure_objects",
+            "must list object names",
+        )
         _require(self.example_grasps >= 0, "report", "example_grasps", "must be >= 0")
         _require(self.epsilon_bins >= 2, "report", "epsilon_bins", "must be >= 2")
 
@@ -285,8 +324,9 @@ def section_from_mapping(cls, mapping, *, section, source="params"):
         raise BadParamsError(f"{source}: {section}: unknown key {unknown[0]!r} (known: {', '.join(known)})")
     missing = [key for key in known if key not in mapping]
     if missing:
-        raise BadParamsError(f"{source}: {section}: missing key {missing[0]!r} "
-                             "(`python -m pipeline.params` prints a complete file)")
+        raise BadParamsError(
+            f"{source}: {section}: missing key {missing[0]!r} (`python -m pipeline.params` prints a complete file)"
+        )
     values = {}
     for key, value in mapping.items():
         expected = known[key].type
@@ -307,8 +347,13 @@ def defaults():
     """Every section and key of a params file with its default value (a dict for YAML); no
     objects."""
     params = Params()
-    return {"seed": params.seed, "objects": {}, "record": params.record, "scales": list(params.scales),
-            **{name: dataclasses.asdict(getattr(params, name)) for name in SECTIONS}}
+    return {
+        "seed": params.seed,
+        "objects": {},
+        "record": params.record,
+        "scales": list(params.scales),
+        **{name: dataclasses.asdict(getattr(params, name)) for name in SECTIONS},
+    }
 
 
 def load_params(path="params.yaml"):
@@ -333,8 +378,9 @@ def load_params(path="params.yaml"):
         raise BadParamsError(f"{path}: unknown section {unknown[0]!r}")
     missing = [f.name for f in dataclasses.fields(Params) if f.name not in raw]
     if missing:
-        raise BadParamsError(f"{path}: missing section {missing[0]!r} (`python -m pipeline.params` prints a "
-                             "complete file)")
+        raise BadParamsError(
+            f"{path}: missing section {missing[0]!r} (`python -m pipeline.params` prints a complete file)"
+        )
     seed = raw["seed"]
     if type(seed) is not int or seed < 0:
         raise BadParamsError(f"{path}: seed must be a non-negative int, got {seed!r}")
@@ -342,15 +388,22 @@ def load_params(path="params.yaml"):
     if not isinstance(objects, dict):
         raise BadParamsError(f"{path}: objects must be a mapping name -> spec")
     scales = raw["scales"]
-    if not (isinstance(scales, list) and scales and all(
+    if not (
+        isinstance(scales, list)
+        and scales
+        and all(
             isinstance(scale, (int, float)) and not isinstance(scale, bool) and math.isfinite(scale) and scale > 0
-            for scale in scales) and len(set(scales)) == len(scales)):
+            for scale in scales
+        )
+        and len(set(scales)) == len(scales)
+    ):
         raise BadParamsError(f"{path}: scales must be a list of distinct positive numbers, got {scales!r}")
     record = raw["record"]
     if type(record) is not bool:
         raise BadParamsError(f"{path}: record must be true or false, got {record!r}")
-    sections = {name: section_from_mapping(cls, raw[name], section=name, source=str(path))
-                for name, cls in SECTIONS.items()}
+    sections = {
+        name: section_from_mapping(cls, raw[name], section=name, source=str(path)) for name, cls in SECTIONS.items()
+    }
     strangers = [name for name in sections["report"].figure_objects if objects and name not in objects]
     if strangers:
         raise BadParamsError(f"{path}: report.figure_objects names {strangers[0]!r}, which is not under objects")

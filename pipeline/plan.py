@@ -23,12 +23,26 @@ from .trials import summary as trial_summary
 
 #: file of each artefact a chain run makes, by its key in :func:`run_chain`'s result: the stage
 #: that makes it (``trials`` and ``contacts`` by their own names), named as in the DVC stages
-ARTEFACT_NAMES = {(stage.name if len(stage.outputs) == 1 else output): ARTEFACTS[output]
-                  for stage in STAGES for output in stage.outputs}
+ARTEFACT_NAMES = {
+    (stage.name if len(stage.outputs) == 1 else output): ARTEFACTS[output]
+    for stage in STAGES
+    for output in stage.outputs
+}
 
 
-def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, hands=None, simulate=False,
-              workers=None, progress=None, trial_progress=None):
+def run_chain(
+    source,
+    params=Params(),
+    *,
+    scale=1.0,
+    shape=None,
+    seed=None,
+    hands=None,
+    simulate=False,
+    workers=None,
+    progress=None,
+    trial_progress=None,
+):
     """Compute every stage's artefact for one object, in memory.
 
     Parameters
@@ -65,24 +79,46 @@ def run_chain(source, params=Params(), *, scale=1.0, shape=None, seed=None, hand
         if progress:
             progress(f"{stage}: {timings[stage]:.2f} s")
 
-    timed("sample", lambda: sample_object(source, scale=scale, shape=shape, rng=np.random.default_rng(seed),
-                                          source_key=source_key(source, shape),
-                                          **dataclasses.asdict(params.sample)))
+    timed(
+        "sample",
+        lambda: sample_object(
+            source,
+            scale=scale,
+            shape=shape,
+            rng=np.random.default_rng(seed),
+            source_key=source_key(source, shape),
+            **dataclasses.asdict(params.sample),
+        ),
+    )
     timed("medial_axis", lambda: medial_axis(artefacts["sample"], **dataclasses.asdict(params.medial_axis)))
-    timed("mat", lambda: reconstruct(artefacts["sample"], artefacts["medial_axis"],
-                                     **dataclasses.asdict(params.mat)))
+    timed("mat", lambda: reconstruct(artefacts["sample"], artefacts["medial_axis"], **dataclasses.asdict(params.mat)))
     timed("sphere_grid", lambda: sphere_grid.build(artefacts["mat"], **dataclasses.asdict(params.sphere_grid)))
     timed("classify", lambda: classify(artefacts["sphere_grid"], **dataclasses.asdict(params.classify)))
-    timed("candidates", lambda: generate_for_hands(artefacts["classify"], hand_specs,
-                                                   approach_directions=params.candidates.approach_directions,
-                                                   flipped_candidates=params.candidates.flipped_candidates))
+    timed(
+        "candidates",
+        lambda: generate_for_hands(
+            artefacts["classify"],
+            hand_specs,
+            approach_directions=params.candidates.approach_directions,
+            flipped_candidates=params.candidates.flipped_candidates,
+        ),
+    )
     if simulate:
         config = params.simulate
-        timed("simulate", lambda: run_simulation(
-            artefacts["sample"], artefacts["candidates"], hand_specs, spheres_per_object=config.spheres_per_object,
-            baseline_trials=config.baseline_trials, seed=seed,
-            workers=default_workers(config.workers if workers is None else workers),
-            settings=config.world_settings(), progress=trial_progress))
+        timed(
+            "simulate",
+            lambda: run_simulation(
+                artefacts["sample"],
+                artefacts["candidates"],
+                hand_specs,
+                spheres_per_object=config.spheres_per_object,
+                baseline_trials=config.baseline_trials,
+                seed=seed,
+                workers=default_workers(config.workers if workers is None else workers),
+                settings=config.world_settings(),
+                progress=trial_progress,
+            ),
+        )
         artefacts["trials"], artefacts["contacts"] = artefacts.pop("simulate")
     return artefacts, timings
 
@@ -95,8 +131,10 @@ def summary(artefacts, timings, *, source, scale, seed, hands=(), warnings=()):
     """
     spheres = artefacts["mat"]
     counts = artefacts["candidates"].groupby("hand").size()
-    candidates = {**{get_hand(hand).name: 0 for hand in hands},
-                  **{str(hand): int(count) for hand, count in counts.items()}}
+    candidates = {
+        **{get_hand(hand).name: 0 for hand in hands},
+        **{str(hand): int(count) for hand, count in counts.items()},
+    }
     return {
         "source": source,
         "scale": scale,
@@ -107,15 +145,22 @@ def summary(artefacts, timings, *, source, scale, seed, hands=(), warnings=()):
             "medial_spheres": len(spheres),
             "spheres_object_angle_ge_120deg": int((spheres.object_angle >= np.radians(120)).sum()),
         },
-        "radius_m": {"min": float(spheres.radii.min()), "median": float(np.median(spheres.radii)),
-                     "max": float(spheres.radii.max())},
+        "radius_m": {
+            "min": float(spheres.radii.min()),
+            "median": float(np.median(spheres.radii)),
+            "max": float(spheres.radii.max()),
+        },
         "classes": dict(zip(CLASSES, np.bincount(artefacts["classify"].class_id, minlength=len(CLASSES)).tolist())),
         "candidates": candidates,
         **(trial_summary(artefacts["trials"]) if "trials" in artefacts else {}),
         "keys": {stage: artefact.key for stage, artefact in artefacts.items() if hasattr(artefact, "key")},
         "timings_s": {stage: round(seconds, 4) for stage, seconds in timings.items()},
-        "warnings": list(warnings) + [no_candidates_warning(get_hand(hand), artefacts["classify"], source)
-                                      for hand in hands if not candidates[get_hand(hand).name]],
+        "warnings": list(warnings)
+        + [
+            no_candidates_warning(get_hand(hand), artefacts["classify"], source)
+            for hand in hands
+            if not candidates[get_hand(hand).name]
+        ],
     }
 
 
@@ -125,19 +170,27 @@ def no_candidates_warning(hand, symmetry, source):
     if not len(diameters):
         return f"hand {hand.name}: no grasp candidates on {source}: the reduced set holds no medial sphere"
     if (diameters > hand.max_graspable_diameter).all():
-        return (f"hand {hand.name}: no grasp candidates on {source}: all {len(diameters)} reduced medial spheres "
-                f"are wider than its max_graspable_diameter {hand.max_graspable_diameter:g} m "
-                f"(narrowest {diameters.min():.3g} m)")
-    return (f"hand {hand.name}: no grasp candidates on {source}: its graspable medial spheres are all of "
-            f"class {CLASSES[INTERIOR]}")
+        return (
+            f"hand {hand.name}: no grasp candidates on {source}: all {len(diameters)} reduced medial spheres "
+            f"are wider than its max_graspable_diameter {hand.max_graspable_diameter:g} m "
+            f"(narrowest {diameters.min():.3g} m)"
+        )
+    return (
+        f"hand {hand.name}: no grasp candidates on {source}: its graspable medial spheres are all of "
+        f"class {CLASSES[INTERIOR]}"
+    )
 
 
 def warning_lines(caught):
     """One line per Python warning caught while the chain ran (``warnings.catch_warnings(record=True)``):
     a pipeline repair as its message, any other with its category and origin."""
-    return [str(caught_warning.message) if issubclass(caught_warning.category, RepairWarning) else
-            f"{caught_warning.category.__name__}: {caught_warning.message} "
-            f"({Path(caught_warning.filename).name}:{caught_warning.lineno})" for caught_warning in caught]
+    return [
+        str(caught_warning.message)
+        if issubclass(caught_warning.category, RepairWarning)
+        else f"{caught_warning.category.__name__}: {caught_warning.message} "
+        f"({Path(caught_warning.filename).name}:{caught_warning.lineno})"
+        for caught_warning in caught
+    ]
 
 
 def write_plan(out_dir, artefacts, summary_dict):

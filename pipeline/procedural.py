@@ -16,8 +16,9 @@ _SEGMENTS = 96
 
 def _to_trimesh(solid):
     mesh = solid.to_mesh()
-    return trimesh.Trimesh(np.asarray(mesh.vert_properties[:, :3], np.float64),
-                           np.asarray(mesh.tri_verts, np.int64), process=True)
+    return trimesh.Trimesh(
+        np.asarray(mesh.vert_properties[:, :3], np.float64), np.asarray(mesh.tri_verts, np.int64), process=True
+    )
 
 
 def _limb(start, end, radius):
@@ -28,8 +29,11 @@ def _limb(start, end, radius):
     tilt = np.degrees(np.arccos(np.clip(axis[2] / length, -1, 1)))
     heading = np.degrees(np.arctan2(axis[1], axis[0]))
     body = manifold3d.Manifold.cylinder(length, radius, radius, _SEGMENTS)
-    body = body + manifold3d.Manifold.sphere(radius, _SEGMENTS) + \
-        manifold3d.Manifold.sphere(radius, _SEGMENTS).translate([0, 0, length])
+    body = (
+        body
+        + manifold3d.Manifold.sphere(radius, _SEGMENTS)
+        + manifold3d.Manifold.sphere(radius, _SEGMENTS).translate([0, 0, length])
+    )
     return body.rotate([0, tilt, 0]).rotate([0, 0, heading]).translate(start)
 
 
@@ -41,8 +45,8 @@ def quadruped():
     for x in (-0.2, 0.2):
         for y in (-0.07, 0.07):
             parts.append(_limb([x, y, 0.05], [x, y, 0.72], 0.03))
-    parts.append(_limb([0.22, 0, 0.8], [0.45, 0, 1.25], 0.035))                      # neck
-    parts.append(_limb([-0.28, 0, 0.78], [-0.45, 0, 0.55], 0.02))                   # tail
+    parts.append(_limb([0.22, 0, 0.8], [0.45, 0, 1.25], 0.035))  # neck
+    parts.append(_limb([-0.28, 0, 0.78], [-0.45, 0, 0.55], 0.02))  # tail
     parts.append(manifold3d.Manifold.sphere(1.0, _SEGMENTS).scale([0.09, 0.045, 0.045]).translate([0.5, 0, 1.28]))
     return _to_trimesh(manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add))
 
@@ -85,8 +89,16 @@ def vase():
     enter the shoulder at 14 cm. The hollow body is too thick to grasp and its walls are
     plates, so the handles are where both hands grasp it (Fig. 10)."""
     outside = [(0, 0), (0.06, 0), (0.09, 0.08), (0.07, 0.15), (0.03, 0.20), (0.03, 0.23), (0.045, 0.25), (0, 0.25)]
-    inside = [(0, 0.006), (0.056, 0.006), (0.086, 0.08), (0.066, 0.15), (0.026, 0.20), (0.026, 0.23),
-              (0.041, 0.2501), (0, 0.2501)]
+    inside = [
+        (0, 0.006),
+        (0.056, 0.006),
+        (0.086, 0.08),
+        (0.066, 0.15),
+        (0.026, 0.20),
+        (0.026, 0.23),
+        (0.041, 0.2501),
+        (0, 0.2501),
+    ]
     parts = [_revolved(outside)]
     for side in (-1, 1):
         corners = [(0.028 * side, 0, 0.21), (0.10 * side, 0, 0.21), (0.10 * side, 0, 0.14), (0.065 * side, 0, 0.14)]
@@ -144,12 +156,25 @@ def octopus():
     for arm in range(8):
         heading = 2 * np.pi * arm / 8
         direction = np.array([np.cos(heading), np.sin(heading), 0.0])
-        points = [direction * 0.05 + [0, 0, 0.06], direction * 0.15 + [0, 0, 0.05], direction * 0.24 + [0, 0, 0.02],
-                  direction * 0.30 + [0, 0, 0.01]]
+        points = [
+            direction * 0.05 + [0, 0, 0.06],
+            direction * 0.15 + [0, 0, 0.05],
+            direction * 0.24 + [0, 0, 0.02],
+            direction * 0.30 + [0, 0, 0.01],
+        ]
         for (start, end), radius in zip(zip(points, points[1:]), (0.02, 0.014, 0.008)):
             parts.append(_limb(start, end, radius))
     return _to_trimesh(manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add))
 
 
-BUILDERS = {"quadruped": quadruped, "mug": mug, "kettle": kettle, "vase": vase, "table": table, "chair": chair,
-            "glasses": glasses, "bust": bust, "octopus": octopus}
+BUILDERS = {
+    "quadruped": quadruped,
+    "mug": mug,
+    "kettle": kettle,
+    "vase": vase,
+    "table": table,
+    "chair": chair,
+    "glasses": glasses,
+    "bust": bust,
+    "octopus": octopus,
+}

@@ -100,8 +100,9 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
             touches[2].append(-normal[hit])
     if tolerance is None:
         return distance
-    joined = [np.concatenate(part) if part else np.zeros((0,) + shape) for part, shape in
-              zip(touches, ((), (3,), (3,)))]
+    joined = [
+        np.concatenate(part) if part else np.zeros((0,) + shape) for part, shape in zip(touches, ((), (3,), (3,)))
+    ]
     return distance, Touches(joined[0].astype(np.int64), *joined[1:])
 
 
@@ -125,8 +126,7 @@ def _vertex_side(mesh, model, flat, slot, close, near, bounds=None):
     if bounds is not None:
         # a far cover is at least its clearance less its radius away; past a near one's reach,
         # every feature is farther than ``near`` from it (just above near: never a touch)
-        bounds.append((pair, np.where(needed, np.nextafter(near, np.inf),
-                                      clearance - model.cover_radius[cover])))
+        bounds.append((pair, np.where(needed, np.nextafter(near, np.inf), clearance - model.cover_radius[cover])))
     if not needed.any():
         return empty
     pair, cover = pair[needed], cover[needed]
@@ -166,7 +166,7 @@ def _piece_distance(model, piece, local, facing, near):
     order = np.argsort(piece, kind="stable")
     bounds = np.searchsorted(piece[order], np.arange(len(model.planes) + 1))
     for number in np.flatnonzero(np.diff(bounds)):
-        rows = order[bounds[number]:bounds[number + 1]]
+        rows = order[bounds[number] : bounds[number + 1]]
         planes = model.planes[number]
         planes = planes[planes[:, 3] > -np.inf]
         signed = local[rows] @ planes[:, :3].T + planes[:, 3]

@@ -104,8 +104,7 @@ def friction_cone(normals, mu=0.5, edges=8):
     return normals[:, None] + mu * tangential
 
 
-def contact_wrenches(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, torsional_friction=0.0,
-                     center=None):
+def contact_wrenches(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, torsional_friction=0.0, center=None):
     """Wrenches of the friction-cone edges (and, for soft fingers, the torsional limits).
 
     Parameters
@@ -165,7 +164,7 @@ def _nearest_facet(wrenches):
     # the extremes along the axes: growing from fewer, larger hulls was slower (measured)
     chosen = np.unique((wrenches @ axes.T).argmax(axis=0))
     if len(chosen) < 7:  # a 6D hull needs 7 points; the rounds only add more
-        chosen = np.union1d(chosen, np.setdiff1d(np.arange(len(wrenches)), chosen)[:7 - len(chosen)])
+        chosen = np.union1d(chosen, np.setdiff1d(np.arange(len(wrenches)), chosen)[: 7 - len(chosen)])
     while True:
         hull = _hull(wrenches[chosen])
         if hull is None:
@@ -190,8 +189,9 @@ def _nearest_facet(wrenches):
         chosen = grown
 
 
-def epsilon_quality(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, torsional_friction=0.0,
-                    center=None, volume=False):
+def epsilon_quality(
+    points, normals, *, mu=0.5, edges=8, torque_scale=1.0, torsional_friction=0.0, center=None, volume=False
+):
     """Ferrari-Canny epsilon (L1) of a grasp; see :func:`contact_wrenches` for the parameters.
     ``volume``: also the hull's volume, from the whole hull, which then gives epsilon too (many
     times slower; the same epsilon to Qhull's rounding).
@@ -202,8 +202,15 @@ def epsilon_quality(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, torsi
         Zero epsilon and volume for no contact, one contact or wrenches spanning fewer than
         6 dimensions (a flat hull, e.g. two point contacts).
     """
-    wrenches = contact_wrenches(points, normals, mu=mu, edges=edges, torque_scale=torque_scale,
-                                torsional_friction=torsional_friction, center=center)
+    wrenches = contact_wrenches(
+        points,
+        normals,
+        mu=mu,
+        edges=edges,
+        torque_scale=torque_scale,
+        torsional_friction=torsional_friction,
+        center=center,
+    )
     none = Quality(0.0, 0.0, False)
     if len(wrenches) < 2:  # one contact's cone never holds the origin inside
         return none

@@ -31,10 +31,18 @@ from .logbook import mcap_log
 
 TRIAL_TIMELINE = "trial"
 # the figures' class colours (paper Fig. 5), plus the classes without candidates
-CLASS_COLOURS = {**{name: tuple(round(255 * value) for value in rgb) for name, rgb in FIGURE_CLASS_COLOURS.items()},
-                 "interior": (150, 150, 150), "surface": (90, 90, 90)}
-OUTCOME_COLOURS = {"force_closure": (40, 170, 60), "no_force_closure": (230, 160, 0), "no_contact": (120, 120, 120),
-                   "collision": (220, 40, 40), "error": (0, 0, 0)}
+CLASS_COLOURS = {
+    **{name: tuple(round(255 * value) for value in rgb) for name, rgb in FIGURE_CLASS_COLOURS.items()},
+    "interior": (150, 150, 150),
+    "surface": (90, 90, 90),
+}
+OUTCOME_COLOURS = {
+    "force_closure": (40, 170, 60),
+    "no_force_closure": (230, 160, 0),
+    "no_contact": (120, 120, 120),
+    "collision": (220, 40, 40),
+    "error": (0, 0, 0),
+}
 
 
 @contextlib.contextmanager
@@ -61,14 +69,24 @@ def log_surface(stream, root, surface, *, max_normals=2000, seed=0):
     """The object mesh, its surface samples and (a seeded subset of) their outward normals."""
     import rerun as rr
 
-    stream.log(f"{root}/surface/mesh", rr.Mesh3D(vertex_positions=surface.vertices, triangle_indices=surface.faces,
-                                                 albedo_factor=(200, 140, 70, 120)), static=True)
-    stream.log(f"{root}/surface/samples", rr.Points3D(surface.points, radii=0.25 * surface.spacing,
-                                                      colors=(110, 110, 110)), static=True)
+    stream.log(
+        f"{root}/surface/mesh",
+        rr.Mesh3D(vertex_positions=surface.vertices, triangle_indices=surface.faces, albedo_factor=(200, 140, 70, 120)),
+        static=True,
+    )
+    stream.log(
+        f"{root}/surface/samples",
+        rr.Points3D(surface.points, radii=0.25 * surface.spacing, colors=(110, 110, 110)),
+        static=True,
+    )
     shown = np.random.default_rng(seed).permutation(len(surface.points))[:max_normals]
-    stream.log(f"{root}/surface/normals", rr.Arrows3D(origins=surface.points[shown],
-                                                      vectors=4 * surface.spacing * surface.normals[shown],
-                                                      colors=(60, 120, 220)), static=True)
+    stream.log(
+        f"{root}/surface/normals",
+        rr.Arrows3D(
+            origins=surface.points[shown], vectors=4 * surface.spacing * surface.normals[shown], colors=(60, 120, 220)
+        ),
+        static=True,
+    )
 
 
 def log_spheres(stream, root, spheres):
@@ -76,9 +94,12 @@ def log_spheres(stream, root, spheres):
     import rerun as rr
 
     colours = (255 * diameter_colours(2 * spheres.radii)).astype(np.uint8)
-    stream.log(f"{root}/spheres", rr.Ellipsoids3D(centers=spheres.centers, radii=spheres.radii, colors=colours,
-                                                  fill_mode="solid"),
-               rr.AnyValues(object_angle_deg=np.degrees(spheres.object_angle), radius_m=spheres.radii), static=True)
+    stream.log(
+        f"{root}/spheres",
+        rr.Ellipsoids3D(centers=spheres.centers, radii=spheres.radii, colors=colours, fill_mode="solid"),
+        rr.AnyValues(object_angle_deg=np.degrees(spheres.object_angle), radius_m=spheres.radii),
+        static=True,
+    )
 
 
 def log_symmetry(stream, root, symmetry, *, with_candidates=None):
@@ -88,17 +109,23 @@ def log_symmetry(stream, root, symmetry, *, with_candidates=None):
 
     names = np.asarray(symmetry.class_names())
     colours = np.array([CLASS_COLOURS[name] for name in names], np.uint8).reshape(-1, 3)
-    stream.log(f"{root}/reduced", rr.Points3D(symmetry.centers, radii=0.5 * symmetry.radii, colors=colours,
-                                              labels=names, show_labels=False),
-               rr.AnyValues(rho=symmetry.rho, sphere_index=symmetry.sphere_index), static=True)
-    chosen = np.ones(len(symmetry), bool) if with_candidates is None else np.isin(symmetry.sphere_index,
-                                                                                with_candidates)
+    stream.log(
+        f"{root}/reduced",
+        rr.Points3D(symmetry.centers, radii=0.5 * symmetry.radii, colors=colours, labels=names, show_labels=False),
+        rr.AnyValues(rho=symmetry.rho, sphere_index=symmetry.sphere_index),
+        static=True,
+    )
+    chosen = (
+        np.ones(len(symmetry), bool) if with_candidates is None else np.isin(symmetry.sphere_index, with_candidates)
+    )
     axes = symmetry.axes.reshape(-1, 3, 3)[chosen]
     length = 2 * symmetry.radii[chosen, None]
     for number, colour in ((0, (200, 30, 30)), (1, (30, 60, 220))):
-        stream.log(f"{root}/symmetry/e{number + 1}", rr.Arrows3D(origins=symmetry.centers[chosen],
-                                                                 vectors=length * axes[:, number], colors=colour),
-                   static=True)
+        stream.log(
+            f"{root}/symmetry/e{number + 1}",
+            rr.Arrows3D(origins=symmetry.centers[chosen], vectors=length * axes[:, number], colors=colour),
+            static=True,
+        )
     stream.log(f"{root}/symmetry/cog", rr.Points3D(symmetry.cog[chosen], colors=(0, 0, 0)), static=True)
 
 
@@ -115,11 +142,17 @@ def log_candidates(stream, root, candidates, *, length=None):
     for hand, rows in candidates.groupby("hand", sort=True):
         grasp, approach, orient = (vectors(rows, prefix) for prefix in ("grasp", "approach", "orient"))
         colours = np.array([CLASS_COLOURS.get(str(name), (0, 0, 0)) for name in rows.sphere_class], np.uint8)
-        stream.log(f"{root}/candidates/{hand}/approach", rr.Arrows3D(origins=grasp - length * approach,
-                                                                     vectors=length * approach, colors=colours),
-                   rr.AnyValues(candidate_id=rows.id.to_numpy()), static=True)
-        stream.log(f"{root}/candidates/{hand}/orient", rr.Arrows3D(origins=grasp, vectors=0.3 * length * orient,
-                                                                   colors=(220, 0, 220)), static=True)
+        stream.log(
+            f"{root}/candidates/{hand}/approach",
+            rr.Arrows3D(origins=grasp - length * approach, vectors=length * approach, colors=colours),
+            rr.AnyValues(candidate_id=rows.id.to_numpy()),
+            static=True,
+        )
+        stream.log(
+            f"{root}/candidates/{hand}/orient",
+            rr.Arrows3D(origins=grasp, vectors=0.3 * length * orient, colors=(220, 0, 220)),
+            static=True,
+        )
 
 
 def log_trials(stream, root, surface, hand, trials, contacts, *, settings=None):
@@ -145,19 +178,31 @@ def log_trials(stream, root, surface, hand, trials, contacts, *, settings=None):
     model = hand_model(hand, spacing=settings.get("link_point_spacing_m", 0.003))
     open_joints = hand.preshape()
     for name, positions in (("approach", approach_start), ("retracted", base), ("closed", base)):
-        boxes = [hand_boxes(model, positions[number], quaternion[number],
-                            dict(zip(hand.limits, trials.joints.iloc[number])) if name == "closed"
-                            else open_joints) for number in np.flatnonzero(placed)]
+        boxes = [
+            hand_boxes(
+                model,
+                positions[number],
+                quaternion[number],
+                dict(zip(hand.limits, trials.joints.iloc[number])) if name == "closed" else open_joints,
+            )
+            for number in np.flatnonzero(placed)
+        ]
         links = len(model.box_half)
         centres = np.concatenate([box[0] for box in boxes]) if boxes else np.zeros((0, 3))
         rotations = np.concatenate([box[1] for box in boxes]) if boxes else np.zeros((0, 3, 3))
         # the closed hand solid, its approach and retracted poses as outlines behind it
         fill = rr.components.FillMode.Solid if name == "closed" else rr.components.FillMode.MajorWireframe
         stream.log(f"{path}/hand/{name}", rr.Boxes3D.from_fields(fill_mode=fill), static=True)
-        stream.send_columns(f"{path}/hand/{name}", indexes=steps, columns=rr.Boxes3D.columns(
-            centers=centres, half_sizes=np.tile(model.box_half, (len(boxes), 1)),
-            quaternions=Rotation.from_matrix(rotations).as_quat() if len(rotations) else np.zeros((0, 4)),
-            colors=np.repeat(colours[placed], links, axis=0)).partition(np.where(placed, links, 0)))
+        stream.send_columns(
+            f"{path}/hand/{name}",
+            indexes=steps,
+            columns=rr.Boxes3D.columns(
+                centers=centres,
+                half_sizes=np.tile(model.box_half, (len(boxes), 1)),
+                quaternions=Rotation.from_matrix(rotations).as_quat() if len(rotations) else np.zeros((0, 4)),
+                colors=np.repeat(colours[placed], links, axis=0),
+            ).partition(np.where(placed, links, 0)),
+        )
     contacts = contacts.sort_values("trial", kind="stable")
     per_trial = np.bincount(contacts.trial.to_numpy(), minlength=count) if len(contacts) else np.zeros(count, int)
     position, normal = contacts[["x", "y", "z"]].to_numpy(), contacts[["nx", "ny", "nz"]].to_numpy()
@@ -166,33 +211,64 @@ def log_trials(stream, root, surface, hand, trials, contacts, *, settings=None):
     cone = friction_cone(-normal, mu=settings.get("mu", 0.5), edges=edges) if len(normal) else np.zeros((0, edges, 3))
     tips = position[:, None] + scale * cone / np.linalg.norm(cone, axis=2, keepdims=True)
     strips = np.stack([np.broadcast_to(position[:, None], tips.shape), tips], axis=2).reshape(-1, 2, 3)
-    stream.send_columns(f"{path}/contacts", indexes=steps, columns=rr.Points3D.columns(
-        positions=position, colors=np.tile([[230, 30, 30]], (len(position), 1))).partition(per_trial))
-    stream.send_columns(f"{path}/normals", indexes=steps, columns=rr.Arrows3D.columns(
-        origins=position, vectors=-scale * normal).partition(per_trial))
-    stream.send_columns(f"{path}/cones", indexes=steps, columns=rr.LineStrips3D.columns(
-        strips=strips).partition(per_trial * edges))
-    stream.send_columns(f"{root}/epsilon/{hand.name}", indexes=steps, columns=rr.Scalars.columns(
-        scalars=trials.epsilon.to_numpy(float)))
-    stream.send_columns(f"{root}/outcome/{hand.name}", indexes=steps, columns=[
-        *rr.Scalars.columns(scalars=[float(OUTCOMES.index(str(outcome))) for outcome in trials.outcome]),
-        *rr.TextLog.columns(text=[f"{planner} {outcome} eps {epsilon:.4f}" for planner, outcome, epsilon
-                                  in zip(trials.planner, trials.outcome, trials.epsilon)])])
+    stream.send_columns(
+        f"{path}/contacts",
+        indexes=steps,
+        columns=rr.Points3D.columns(positions=position, colors=np.tile([[230, 30, 30]], (len(position), 1))).partition(
+            per_trial
+        ),
+    )
+    stream.send_columns(
+        f"{path}/normals",
+        indexes=steps,
+        columns=rr.Arrows3D.columns(origins=position, vectors=-scale * normal).partition(per_trial),
+    )
+    stream.send_columns(
+        f"{path}/cones", indexes=steps, columns=rr.LineStrips3D.columns(strips=strips).partition(per_trial * edges)
+    )
+    stream.send_columns(
+        f"{root}/epsilon/{hand.name}", indexes=steps, columns=rr.Scalars.columns(scalars=trials.epsilon.to_numpy(float))
+    )
+    stream.send_columns(
+        f"{root}/outcome/{hand.name}",
+        indexes=steps,
+        columns=[
+            *rr.Scalars.columns(scalars=[float(OUTCOMES.index(str(outcome))) for outcome in trials.outcome]),
+            *rr.TextLog.columns(
+                text=[
+                    f"{planner} {outcome} eps {epsilon:.4f}"
+                    for planner, outcome, epsilon in zip(trials.planner, trials.outcome, trials.epsilon)
+                ]
+            ),
+        ],
+    )
     joints = [np.asarray(values, float).ravel() for values in trials.joints]
-    stream.send_columns(f"{path}/joints", indexes=steps, columns=rr.AnyValues.columns(
-        joints_rad=np.concatenate(joints) if joints else np.zeros(0)).partition([len(values) for values in joints]))
+    stream.send_columns(
+        f"{path}/joints",
+        indexes=steps,
+        columns=rr.AnyValues.columns(joints_rad=np.concatenate(joints) if joints else np.zeros(0)).partition(
+            [len(values) for values in joints]
+        ),
+    )
 
 
 def send_blueprint(stream, root):
     """Open on the 3D scene beside the trial scalars."""
     import rerun.blueprint as rrb
 
-    stream.send_blueprint(rrb.Blueprint(rrb.Horizontal(
-        rrb.Spatial3DView(origin=root, name="object, spheres, grasps"),
-        rrb.Vertical(rrb.TimeSeriesView(origin=f"{root}/epsilon", name="epsilon"),
-                     rrb.TimeSeriesView(origin=f"{root}/outcome", name="outcome (0 force closure ... 4 error)"),
-                     rrb.TextLogView(origin=f"{root}/outcome", name="trials")),
-        column_shares=[3, 1])))
+    stream.send_blueprint(
+        rrb.Blueprint(
+            rrb.Horizontal(
+                rrb.Spatial3DView(origin=root, name="object, spheres, grasps"),
+                rrb.Vertical(
+                    rrb.TimeSeriesView(origin=f"{root}/epsilon", name="epsilon"),
+                    rrb.TimeSeriesView(origin=f"{root}/outcome", name="outcome (0 force closure ... 4 error)"),
+                    rrb.TextLogView(origin=f"{root}/outcome", name="trials"),
+                ),
+                column_shares=[3, 1],
+            )
+        )
+    )
 
 
 def record_stage(run, draw):
@@ -240,13 +316,24 @@ def record_chain(rrd_path, mcap_path, artefacts, summary_dict, *, name, hands, s
             for hand in hands:
                 rows = np.flatnonzero(trials.hand.to_numpy() == hand.name)
                 own = contacts[contacts.trial.isin(rows)].assign(trial=lambda frame: np.searchsorted(rows, frame.trial))
-                log_trials(stream, root, surface, hand, trials.iloc[rows].reset_index(drop=True), own,
-                           settings=settings)
+                log_trials(
+                    stream, root, surface, hand, trials.iloc[rows].reset_index(drop=True), own, settings=settings
+                )
     with mcap_log(mcap_path, "plan") as log:
-        log.log("/params", {"source": summary_dict["source"], "scale": summary_dict["scale"],
-                            "seed": summary_dict["seed"], "hands": [hand.name for hand in hands], **(settings or {})})
-        log.log("/counts", {**summary_dict["counts"], "classes": summary_dict["classes"],
-                            "candidates": summary_dict["candidates"]})
+        log.log(
+            "/params",
+            {
+                "source": summary_dict["source"],
+                "scale": summary_dict["scale"],
+                "seed": summary_dict["seed"],
+                "hands": [hand.name for hand in hands],
+                **(settings or {}),
+            },
+        )
+        log.log(
+            "/counts",
+            {**summary_dict["counts"], "classes": summary_dict["classes"], "candidates": summary_dict["candidates"]},
+        )
         for stage, seconds in summary_dict["timings_s"].items():  # the chain's stages, one process
             log.log("/timing", {"stage": stage, "seconds": seconds})
         if not len(candidates):

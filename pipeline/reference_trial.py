@@ -27,8 +27,12 @@ def winding_number(vertices, faces, points):
     a, b, c = corners[:, :, 0], corners[:, :, 1], corners[:, :, 2]
     la, lb, lc = (np.linalg.norm(v, axis=2) for v in (a, b, c))
     numerator = np.einsum("ntk,ntk->nt", a, np.cross(b, c))
-    denominator = la * lb * lc + np.einsum("ntk,ntk->nt", a, b) * lc + np.einsum("ntk,ntk->nt", b, c) * la \
+    denominator = (
+        la * lb * lc
+        + np.einsum("ntk,ntk->nt", a, b) * lc
+        + np.einsum("ntk,ntk->nt", b, c) * la
         + np.einsum("ntk,ntk->nt", c, a) * lb
+    )
     return (2.0 * np.arctan2(numerator, denominator)).sum(axis=1) / (4.0 * np.pi)
 
 
@@ -45,12 +49,19 @@ class ReferenceEngine:
         self.centre = mass_properties(surface.vertices, surface.faces)
         self.torque_scale = float(np.linalg.norm(surface.vertices - self.centre, axis=1).max())
         self.client = pybullet.connect(pybullet.DIRECT)
-        shape = self._call(pybullet.createCollisionShape, pybullet.GEOM_MESH, vertices=surface.vertices.tolist(),
-                           indices=surface.faces.ravel().tolist(), flags=pybullet.GEOM_FORCE_CONCAVE_TRIMESH)
+        shape = self._call(
+            pybullet.createCollisionShape,
+            pybullet.GEOM_MESH,
+            vertices=surface.vertices.tolist(),
+            indices=surface.faces.ravel().tolist(),
+            flags=pybullet.GEOM_FORCE_CONCAVE_TRIMESH,
+        )
         self.object = self._call(pybullet.createMultiBody, 0, shape)
         self._call(pybullet.changeDynamics, self.object, -1, collisionMargin=0.0)
         self.body = load_hand(hand, self.client)
-        info = [self._call(pybullet.getJointInfo, self.body, k) for k in range(self._call(pybullet.getNumJoints, self.body))]
+        info = [
+            self._call(pybullet.getJointInfo, self.body, k) for k in range(self._call(pybullet.getNumJoints, self.body))
+        ]
         self.joint_index = {row[1].decode(): row[0] for row in info}
         link_index = {row[12].decode(): row[0] for row in info}
         # pybullet link index of each model link (-1: the base)
@@ -108,8 +119,10 @@ class ReferenceEngine:
         if any(self._gap(link, 0.0) < -1e-6 for link in geometric):
             return True
         poses = link_poses(self.model, base[None], q[None])[0]
-        centres = np.einsum("sij,sj->si", poses[self.model.box_link, :3, :3], self.model.box_centre) \
+        centres = (
+            np.einsum("sij,sj->si", poses[self.model.box_link, :3, :3], self.model.box_centre)
             + poses[self.model.box_link, :3, 3]
+        )
         return bool((winding_number(self.vertices, self.faces, centres) > 0.5).any())
 
     def run(self, grasp, approach, orient, preshapes):
@@ -120,8 +133,9 @@ class ReferenceEngine:
         model, settings = self.model, self.settings
         tolerance = settings.contact_tolerance_m
         approach = np.asarray(approach, float) / np.linalg.norm(approach)
-        base = base_poses(self.hand, np.asarray(grasp_point, float)[None], approach[None],
-                          np.asarray(orient, float)[None])[0]
+        base = base_poses(
+            self.hand, np.asarray(grasp_point, float)[None], approach[None], np.asarray(orient, float)[None]
+        )[0]
         q = np.array([self.hand.preshape(preshape)[name] for name in model.joints], float)
         retreat = None
         for offset in np.arange(0.0, settings.retract_max_m + 1e-12, settings.retract_step_m):
@@ -142,8 +156,10 @@ class ReferenceEngine:
             gap = min(self._gap(link) for link in geometric)
             if gap <= tolerance:
                 break
-            step = max(settings.approach_step_m, np.floor((gap - tolerance) / settings.approach_step_m)
-                       * settings.approach_step_m)
+            step = max(
+                settings.approach_step_m,
+                np.floor((gap - tolerance) / settings.approach_step_m) * settings.approach_step_m,
+            )
             offset = max(offset - step, 0.0)
         base[:3, 3] -= offset * approach
         direction = np.sign(model.closing)
@@ -156,8 +172,12 @@ class ReferenceEngine:
             steps += 1
             self._pose(base, q)
             wanted = (active.astype(float) @ model.moves) > 0
-            distance = np.array([self._gap(link) if wanted[link] and model.link_radius[link] > 0 else np.inf
-                                 for link in range(len(model.links))])
+            distance = np.array(
+                [
+                    self._gap(link) if wanted[link] and model.link_radius[link] > 0 else np.inf
+                    for link in range(len(model.links))
+                ]
+            )
             touching = np.flatnonzero(distance <= tolerance)
             pressing = np.zeros(len(model.links), bool)
             pressing[touching] = [self._pressed(base, q, active, link) for link in touching]
@@ -172,16 +192,31 @@ class ReferenceEngine:
                 links = np.flatnonzero(motion > 0)
                 room = np.maximum(distance[links] - tolerance / 2, tolerance / 2)
                 advance = (room / motion[links]).min()
-                q[joints] = np.clip(q[joints] + model.closing[joints] * advance, model.lower[joints], model.upper[joints])
-                reached = np.where(direction[joints] > 0, q[joints] >= model.upper[joints],
-                                   q[joints] <= model.lower[joints])
+                q[joints] = np.clip(
+                    q[joints] + model.closing[joints] * advance, model.lower[joints], model.upper[joints]
+                )
+                reached = np.where(
+                    direction[joints] > 0, q[joints] >= model.upper[joints], q[joints] <= model.lower[joints]
+                )
                 active[joints[reached]] = False
-        stops = tuple("step_cap" if (active & (model.finger == f)).any() else
-                      "contact" if (by_contact & (model.finger == f)).any() else "limit" for f in range(model.fingers))
+        stops = tuple(
+            "step_cap"
+            if (active & (model.finger == f)).any()
+            else "contact"
+            if (by_contact & (model.finger == f)).any()
+            else "limit"
+            for f in range(model.fingers)
+        )
         self._pose(base, q)
-        pose = dict(retract_m=float(offset), approach_m=float(retreat - offset), base_position=tuple(base[:3, 3]),
-                    base_orientation=tuple(Rotation.from_matrix(base[:3, :3]).as_quat()),
-                    joint_positions=tuple(map(float, q)), close_steps=steps, finger_stops=stops)
+        pose = dict(
+            retract_m=float(offset),
+            approach_m=float(retreat - offset),
+            base_position=tuple(base[:3, 3]),
+            base_orientation=tuple(Rotation.from_matrix(base[:3, :3]).as_quat()),
+            joint_positions=tuple(map(float, q)),
+            close_steps=steps,
+            finger_stops=stops,
+        )
         if "step_cap" in stops:
             return TrialResult("step_cap", **pose)
         regions = []

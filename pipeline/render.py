@@ -14,6 +14,7 @@ def closed_joints(hand):
     until its first joint reaches a limit."""
     joints = hand.preshape()
     for finger in hand.fingers:
+
         def room(joint, ratio):  # closing parameter left until the joint's limit
             lower, upper = hand.limits[joint]
             return (upper - joints[joint]) / ratio if ratio > 0 else (lower - joints[joint]) / ratio
@@ -35,8 +36,9 @@ def _with_mimics(hand, joints):
     return {**model.joint_values([joints[name] for name in model.joints]), **joints}
 
 
-def render_hand(hand, joints, *, base=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), surface=None, size=(480, 480),
-                frame="hand"):
+def render_hand(
+    hand, joints, *, base=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), surface=None, size=(480, 480), frame="hand"
+):
     """(height, width, 3) uint8 image of ``hand`` in the joint state ``joints`` (name -> value)
     at the base pose ``base`` (position, quaternion x y z w), with the object mesh of
     ``surface`` (SurfaceSamples) if given. ``frame="hand"``: a three-quarter view framed on
@@ -48,16 +50,21 @@ def render_hand(hand, joints, *, base=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), s
     client = pybullet.connect(pybullet.DIRECT)
     try:
         body = load_hand(hand, client)
-        names = {pybullet.getJointInfo(body, index, physicsClientId=client)[1].decode(): index
-                 for index in range(pybullet.getNumJoints(body, physicsClientId=client))}
+        names = {
+            pybullet.getJointInfo(body, index, physicsClientId=client)[1].decode(): index
+            for index in range(pybullet.getNumJoints(body, physicsClientId=client))
+        }
         rotation = np.array(pybullet.getMatrixFromQuaternion(base[1])).reshape(3, 3)
         # frame the open hand, in its own frame, so open and closed pictures match
         # pybullet places a base by its inertial frame; ``base`` is the URDF base frame's pose
         inertial = pybullet.getDynamicsInfo(body, -1, physicsClientId=client)[3:5]
 
         def place(position, quaternion):
-            pybullet.resetBasePositionAndOrientation(body, *pybullet.multiplyTransforms(
-                tuple(position), tuple(quaternion), *inertial), physicsClientId=client)
+            pybullet.resetBasePositionAndOrientation(
+                body,
+                *pybullet.multiplyTransforms(tuple(position), tuple(quaternion), *inertial),
+                physicsClientId=client,
+            )
 
         place((0, 0, 0), (0, 0, 0, 1))
         for joint, value in _with_mimics(hand, hand.preshape()).items():
@@ -79,21 +86,33 @@ def render_hand(hand, joints, *, base=((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)), s
                 margin = 0.5 * np.linalg.norm(high - low)  # a large object is shown around the hand only
                 low = np.minimum(low, np.maximum(surface.vertices.min(axis=0), low - margin))
                 high = np.maximum(high, np.minimum(surface.vertices.max(axis=0), high + margin))
-            direction = rotation @ (SCENE_VIEW[0] * np.asarray(hand.wrap) + SCENE_VIEW[1] * side
-                                    + SCENE_VIEW[2] * np.asarray(hand.approach))
+            direction = rotation @ (
+                SCENE_VIEW[0] * np.asarray(hand.wrap) + SCENE_VIEW[1] * side + SCENE_VIEW[2] * np.asarray(hand.approach)
+            )
             direction /= np.linalg.norm(direction)
             up = np.array([0.0, 0.0, 1.0]) if abs(direction[2]) < 0.9 else rotation @ np.asarray(hand.approach)
             target = (low + high) / 2
             eye = target + 1.4 * np.linalg.norm(high - low) * direction
         if surface is not None:
-            shape = pybullet.createVisualShape(pybullet.GEOM_MESH, vertices=surface.vertices.tolist(),
-                                               indices=surface.faces.ravel().tolist(),
-                                               rgbaColor=(0.85, 0.55, 0.25, 1.0), physicsClientId=client)
+            shape = pybullet.createVisualShape(
+                pybullet.GEOM_MESH,
+                vertices=surface.vertices.tolist(),
+                indices=surface.faces.ravel().tolist(),
+                rgbaColor=(0.85, 0.55, 0.25, 1.0),
+                physicsClientId=client,
+            )
             pybullet.createMultiBody(0, baseVisualShapeIndex=shape, physicsClientId=client)
         view = pybullet.computeViewMatrix(eye.tolist(), target.tolist(), up.tolist(), physicsClientId=client)
         projection = pybullet.computeProjectionMatrixFOV(40, size[0] / size[1], 0.01, 10, physicsClientId=client)
-        image = pybullet.getCameraImage(size[0], size[1], view, projection, renderer=pybullet.ER_TINY_RENDERER,
-                                        lightDirection=(eye - target).tolist(), physicsClientId=client)[2]
+        image = pybullet.getCameraImage(
+            size[0],
+            size[1],
+            view,
+            projection,
+            renderer=pybullet.ER_TINY_RENDERER,
+            lightDirection=(eye - target).tolist(),
+            physicsClientId=client,
+        )[2]
         return np.asarray(image, np.uint8).reshape(size[1], size[0], 4)[..., :3]
     finally:
         pybullet.disconnect(physicsClientId=client)
@@ -116,8 +135,10 @@ def render_open_closed(hand, path, *, surface=None, target=None, size=(480, 480)
         result = GraspEngine(surface, hand).trial(*target)
         base = (result.base_position, result.base_orientation)
         closed = dict(zip(hand.limits, result.joint_positions))
-        pictures = [render_hand(hand, hand.preshape(), base=base, surface=surface, size=size),
-                    render_hand(hand, closed, base=base, surface=surface, size=size)]
+        pictures = [
+            render_hand(hand, hand.preshape(), base=base, surface=surface, size=size),
+            render_hand(hand, closed, base=base, surface=surface, size=size),
+        ]
     image = np.concatenate(pictures, axis=1)
     atomic_write(path, lambda stream: Image.fromarray(image).save(stream, format="PNG"))
     return path
@@ -133,11 +154,19 @@ def render_builtin_hands(folder, *, size=(400, 400)):
     from .sampling import sample_object
 
     def surface(shape, **keywords):
-        return sample_object(f"primitive:{shape}", shape=keywords, rng=np.random.default_rng(0), source_key=shape,
-                             **vars(SampleParams()))
+        return sample_object(
+            f"primitive:{shape}", shape=keywords, rng=np.random.default_rng(0), source_key=shape, **vars(SampleParams())
+        )
 
     scenes = {"box": surface("box", extents=[0.04] * 3), "cylinder": surface("cylinder", radius=0.025, height=0.12)}
     target = ([0.0, 0.0, 0.01], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0])
-    return [render_open_closed(hand, Path(folder) / f"{name}.png", size=size, target=target,
-                               surface=scenes["box" if name in ("parallel_jaw", "franka") else "cylinder"])
-            for name, hand in HANDS.items()]
+    return [
+        render_open_closed(
+            hand,
+            Path(folder) / f"{name}.png",
+            size=size,
+            target=target,
+            surface=scenes["box" if name in ("parallel_jaw", "franka") else "cylinder"],
+        )
+        for name, hand in HANDS.items()
+    ]

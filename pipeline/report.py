@@ -46,12 +46,15 @@ def results(trials, runs):
     index = pd.MultiIndex.from_tuples([(name, float(scale), hand) for name, scale, hand in runs], names=KEYS)
     closed = trials.outcome == "force_closure"
     grouped = trials.assign(closed=closed, closed_epsilon=trials.epsilon.where(closed)).groupby(
-        KEYS + ["planner"], observed=True)
-    table = pd.DataFrame({
-        "trials": grouped.size(),
-        "force_closure_pct": 100.0 * grouped.closed.mean(),
-        "mean_epsilon": grouped.closed_epsilon.mean(),
-    }).unstack("planner")
+        KEYS + ["planner"], observed=True
+    )
+    table = pd.DataFrame(
+        {
+            "trials": grouped.size(),
+            "force_closure_pct": 100.0 * grouped.closed.mean(),
+            "mean_epsilon": grouped.closed_epsilon.mean(),
+        }
+    ).unstack("planner")
     frame = pd.DataFrame(index=index)
     for planner in ("mat", "baseline"):
         for column in ("trials", "force_closure_pct", "mean_epsilon"):
@@ -71,16 +74,22 @@ def metrics(trials, table):
     """Headline numbers for ``dvc metrics show``: force-closure rate of each planner overall, per
     hand and per scale (from ``trials``), and in how many runs MAT beats the baseline (from
     :func:`results`' ``table``)."""
+
     def rates(frame):
         closed = frame.outcome == "force_closure"
-        return {"force_closure_rate": round(float(closed.mean()), 4) if len(frame) else float("nan"),
-                "trials": int(len(frame))}
+        return {
+            "force_closure_rate": round(float(closed.mean()), 4) if len(frame) else float("nan"),
+            "trials": int(len(frame)),
+        }
 
     out = {planner: rates(trials[trials.planner == planner]) for planner in ("mat", "baseline")}
     for key, label in (("hand", "per_hand"), ("scale", "per_scale")):
-        out[label] = {str(value): {planner: rates(group[group.planner == planner])["force_closure_rate"]
-                                   for planner in ("mat", "baseline")}
-                      for value, group in trials.groupby(key, sort=True)}
+        out[label] = {
+            str(value): {
+                planner: rates(group[group.planner == planner])["force_closure_rate"] for planner in ("mat", "baseline")
+            }
+            for value, group in trials.groupby(key, sort=True)
+        }
     compared = table.dropna(subset=["mat_force_closure_pct", "baseline_force_closure_pct"])
     out["runs_compared"] = int(len(compared))
     out["runs_mat_above_baseline"] = int((compared.mat_force_closure_pct > compared.baseline_force_closure_pct).sum())
@@ -92,8 +101,12 @@ def plot_tables(table, trials, *, bins=20):
     (``run`` = "object xscale hand", 0 where there were no trials) per planner; from ``trials``,
     the epsilon histograms of the force-closure trials (counts per bin over [0, largest epsilon])."""
     run = table.object + " x" + table.scale.map("{:g}".format) + " " + table.hand
-    force_closure = {planner: pd.DataFrame({"run": run, "force_closure_pct": table[f"{planner}_force_closure_pct"]
-                                            .fillna(0.0).round(2)}) for planner in ("mat", "baseline")}
+    force_closure = {
+        planner: pd.DataFrame(
+            {"run": run, "force_closure_pct": table[f"{planner}_force_closure_pct"].fillna(0.0).round(2)}
+        )
+        for planner in ("mat", "baseline")
+    }
     closed = trials[trials.outcome == "force_closure"]
     top = float(closed.epsilon.max()) if len(closed) else 1.0
     edges = np.linspace(0.0, top if top > 0 else 1.0, bins + 1)
@@ -111,10 +124,14 @@ def timing_table(timings):
     frame = pd.DataFrame(timings, columns=["stage", "seconds", "process_seconds", "record_seconds"])
     frame["process_seconds"] = frame.process_seconds.fillna(frame.seconds)
     frame["record_seconds"] = frame.record_seconds.fillna(0.0)
-    table = frame.groupby("stage").agg(runs=("seconds", "size"), total_s=("seconds", "sum"),
-                                       median_s=("seconds", "median"), max_s=("seconds", "max"),
-                                       record_total_s=("record_seconds", "sum"),
-                                       process_total_s=("process_seconds", "sum"))
+    table = frame.groupby("stage").agg(
+        runs=("seconds", "size"),
+        total_s=("seconds", "sum"),
+        median_s=("seconds", "median"),
+        max_s=("seconds", "max"),
+        record_total_s=("record_seconds", "sum"),
+        process_total_s=("process_seconds", "sum"),
+    )
     return table.reindex([stage for stage in order if stage in table.index]).reset_index()
 
 
@@ -127,13 +144,20 @@ def table_one(table, planner):
     hand and scale, cells the force-closure % ("-": no trials, the object had no candidates)."""
     hands = list(dict.fromkeys(table.hand))
     scales = list(dict.fromkeys(table.scale))
-    header = "| object | " + " | ".join(f"{HAND_TITLES.get(hand, hand)} x{scale:g}" for hand in hands
-                                       for scale in scales) + " |"
+    header = (
+        "| object | "
+        + " | ".join(f"{HAND_TITLES.get(hand, hand)} x{scale:g}" for hand in hands for scale in scales)
+        + " |"
+    )
     lines = [header, "| --- |" + " ---: |" * (len(hands) * len(scales))]
     cells = table.set_index(KEYS)
     for name in dict.fromkeys(table.object):
-        row = [_pct(cells.loc[key, f"{planner}_force_closure_pct"], cells.loc[key, f"{planner}_trials"])
-               if key in cells.index else "" for key in ((name, scale, hand) for hand in hands for scale in scales)]
+        row = [
+            _pct(cells.loc[key, f"{planner}_force_closure_pct"], cells.loc[key, f"{planner}_trials"])
+            if key in cells.index
+            else ""
+            for key in ((name, scale, hand) for hand in hands for scale in scales)
+        ]
         lines.append(f"| {name} | " + " | ".join(row) + " |")
     return "\n".join(lines)
 
@@ -141,16 +165,21 @@ def table_one(table, planner):
 def runs_table(table):
     """Markdown with a row per object x scale x hand: both planners' rates, trials and mean
     epsilon, and the MAT trials' outcome counts."""
-    lines = ["| object | scale | hand | MAT % | baseline % | MAT trials | baseline trials | MAT mean eps "
-             "| baseline mean eps | " + " | ".join(OUTCOMES) + " |",
-             "| --- | ---: | --- |" + " ---: |" * (6 + len(OUTCOMES))]
+    lines = [
+        "| object | scale | hand | MAT % | baseline % | MAT trials | baseline trials | MAT mean eps "
+        "| baseline mean eps | " + " | ".join(OUTCOMES) + " |",
+        "| --- | ---: | --- |" + " ---: |" * (6 + len(OUTCOMES)),
+    ]
     for row in table.itertuples(index=False):
-        epsilon = [("-" if pd.isna(value) else f"{value:.4f}") for value in (row.mat_mean_epsilon,
-                                                                           row.baseline_mean_epsilon)]
+        epsilon = [
+            ("-" if pd.isna(value) else f"{value:.4f}") for value in (row.mat_mean_epsilon, row.baseline_mean_epsilon)
+        ]
         counts = [str(getattr(row, outcome)) for outcome in OUTCOMES]
-        lines.append(f"| {row.object} | {row.scale:g} | {row.hand} | {_pct(row.mat_force_closure_pct, row.mat_trials)} "
-                     f"| {_pct(row.baseline_force_closure_pct, row.baseline_trials)} | {row.mat_trials} "
-                     f"| {row.baseline_trials} | {epsilon[0]} | {epsilon[1]} | " + " | ".join(counts) + " |")
+        lines.append(
+            f"| {row.object} | {row.scale:g} | {row.hand} | {_pct(row.mat_force_closure_pct, row.mat_trials)} "
+            f"| {_pct(row.baseline_force_closure_pct, row.baseline_trials)} | {row.mat_trials} "
+            f"| {row.baseline_trials} | {epsilon[0]} | {epsilon[1]} | " + " | ".join(counts) + " |"
+        )
     return "\n".join(lines)
 
 
@@ -178,36 +207,71 @@ def markdown(table, metrics_dict, timings, *, figures=(), settings=""):
         return "-" if np.isnan(value) else f"{100 * value:.1f} %"
 
     parts = [
-        "# Grasp planning on the grid of medial spheres: results", "", settings, "",
+        "# Grasp planning on the grid of medial spheres: results",
+        "",
+        settings,
+        "",
         f"MAT candidates: {mat['trials']} trials, force closure {rate(mat['force_closure_rate'])}; "
         f"surface-normal baseline: {baseline['trials']} trials, {rate(baseline['force_closure_rate'])}. "
         f"MAT is above the baseline in {metrics_dict['runs_mat_above_baseline']} of "
-        f"{metrics_dict['runs_compared']} runs (object x scale x hand) that have trials.", "",
-        "## Table I: force-closure % of the MAT candidates", "", table_one(table, "mat"), "",
-        "## The same for the surface-normal baseline", "", table_one(table, "baseline"), "",
-        "## Every run", "",
+        f"{metrics_dict['runs_compared']} runs (object x scale x hand) that have trials.",
+        "",
+        "## Table I: force-closure % of the MAT candidates",
+        "",
+        table_one(table, "mat"),
+        "",
+        "## The same for the surface-normal baseline",
+        "",
+        table_one(table, "baseline"),
+        "",
+        "## Every run",
+        "",
         "Mean epsilon is over the force-closure trials (Ferrari-Canny L1, torque over the object's "
-        "largest radius); the outcome counts are the MAT trials'.", "", runs_table(table), "",
+        "largest radius); the outcome counts are the MAT trials'.",
+        "",
+        runs_table(table),
+        "",
     ]
     if len(losing):
-        parts += ["Runs where MAT is not above the baseline: " + ", ".join(
-            f"{row.object} x{row.scale:g} {row.hand} ({row.mat_force_closure_pct:.1f} vs "
-            f"{row.baseline_force_closure_pct:.1f})" for row in losing.itertuples()) + ".", ""]
+        parts += [
+            "Runs where MAT is not above the baseline: "
+            + ", ".join(
+                f"{row.object} x{row.scale:g} {row.hand} ({row.mat_force_closure_pct:.1f} vs "
+                f"{row.baseline_force_closure_pct:.1f})"
+                for row in losing.itertuples()
+            )
+            + ".",
+            "",
+        ]
     if len(empty):
-        parts += ["Runs without MAT trials (no sphere of the reduced set fits the hand): " + ", ".join(
-            f"{row.object} x{row.scale:g} {row.hand}" for row in empty.itertuples()) + ".", ""]
-    parts += ["## Time per stage", "",
-              "Wall seconds of each stage's work, of which the part spent writing rerun recordings (rerun's "
-              "import included); the last column adds the Python start-up and imports of its processes (DVC's "
-              "own bookkeeping is not included).", "",
-              "| stage | runs | total s | median s | max s | recording s | with start-up s |",
-              "| --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
-    parts += [f"| {row.stage} | {row.runs} | {row.total_s:.1f} | {row.median_s:.2f} | {row.max_s:.2f} "
-              f"| {row.record_total_s:.1f} | {row.process_total_s:.1f} |" for row in timings.itertuples()]
+        parts += [
+            "Runs without MAT trials (no sphere of the reduced set fits the hand): "
+            + ", ".join(f"{row.object} x{row.scale:g} {row.hand}" for row in empty.itertuples())
+            + ".",
+            "",
+        ]
+    parts += [
+        "## Time per stage",
+        "",
+        "Wall seconds of each stage's work, of which the part spent writing rerun recordings (rerun's "
+        "import included); the last column adds the Python start-up and imports of its processes (DVC's "
+        "own bookkeeping is not included).",
+        "",
+        "| stage | runs | total s | median s | max s | recording s | with start-up s |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    parts += [
+        f"| {row.stage} | {row.runs} | {row.total_s:.1f} | {row.median_s:.2f} | {row.max_s:.2f} "
+        f"| {row.record_total_s:.1f} | {row.process_total_s:.1f} |"
+        for row in timings.itertuples()
+    ]
     recorded, whole = timings.record_total_s.sum(), timings.process_total_s.sum()
     if recorded:
-        parts += ["", f"Recording took {recorded:.1f} s of the stages' {whole:.1f} s: it added "
-                      f"{100 * recorded / max(whole - recorded, 1e-9):.1f} % to the run (target: at most 20 %)."]
+        parts += [
+            "",
+            f"Recording took {recorded:.1f} s of the stages' {whole:.1f} s: it added "
+            f"{100 * recorded / max(whole - recorded, 1e-9):.1f} % to the run (target: at most 20 %).",
+        ]
     if figures:
         parts += ["", "## Figures", ""]
         for caption, path in figures:

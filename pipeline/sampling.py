@@ -44,16 +44,16 @@ def corner_normals(vertices, faces, *, sharp_angle):
     corner_vertex = faces.ravel()
     corner_face = np.repeat(np.arange(len(faces)), 3)
     # vertex -> incident faces (CSR, data = the face's angle at that vertex)
-    incidence = scipy.sparse.csr_matrix((corner_angle, (corner_vertex, corner_face)),
-                                        shape=(len(vertices), len(faces)))
+    incidence = scipy.sparse.csr_matrix((corner_angle, (corner_vertex, corner_face)), shape=(len(vertices), len(faces)))
     pair_corner, position = expand_ranges(incidence.indptr[corner_vertex], np.diff(incidence.indptr)[corner_vertex])
     pair_face = incidence.indices[position]
     smooth = (face_normals[corner_face[pair_corner]] * face_normals[pair_face]).sum(1) >= np.cos(sharp_angle)
     weight = (incidence.data[position] * np.linalg.norm(cross, axis=1)[pair_face])[smooth]
     summed = np.zeros((len(corner_vertex), 3))
     for axis in range(3):
-        summed[:, axis] = np.bincount(pair_corner[smooth], weights=weight * face_normals[pair_face[smooth], axis],
-                                      minlength=len(corner_vertex))
+        summed[:, axis] = np.bincount(
+            pair_corner[smooth], weights=weight * face_normals[pair_face[smooth], axis], minlength=len(corner_vertex)
+        )
     return unit_rows(summed).reshape(-1, 3, 3)
 
 
@@ -118,8 +118,19 @@ def median_spacing(points):
     return float(np.median(distances[:, 1]))
 
 
-def sample_object(source, *, count, rng, sharp_angle_deg, min_extent_m, max_extent_m,
-                  cloud_normal_neighbours, scale=1.0, shape=None, source_key=""):
+def sample_object(
+    source,
+    *,
+    count,
+    rng,
+    sharp_angle_deg,
+    min_extent_m,
+    max_extent_m,
+    cloud_normal_neighbours,
+    scale=1.0,
+    shape=None,
+    source_key="",
+):
     """Load, validate and sample one object: the whole ``sample`` stage as a pure function.
 
     Parameters
@@ -138,15 +149,22 @@ def sample_object(source, *, count, rng, sharp_angle_deg, min_extent_m, max_exte
     -------
     SurfaceSamples
     """
-    params = dict(count=count, sharp_angle_deg=sharp_angle_deg, min_extent_m=min_extent_m,
-                  max_extent_m=max_extent_m, cloud_normal_neighbours=cloud_normal_neighbours,
-                  scale=scale, shape=shape or {})  # no shape keywords: one key, whether None or {}
+    params = dict(
+        count=count,
+        sharp_angle_deg=sharp_angle_deg,
+        min_extent_m=min_extent_m,
+        max_extent_m=max_extent_m,
+        cloud_normal_neighbours=cloud_normal_neighbours,
+        scale=scale,
+        shape=shape or {},
+    )  # no shape keywords: one key, whether None or {}
     loaded = load_source(source, scale=scale, shape=shape)
     if loaded[0] == "mesh":
         mesh = validate_mesh(loaded[1], name=source, min_extent=min_extent_m, max_extent=max_extent_m)
         vertices, faces = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
-        points, normals, face_index = sample_mesh(vertices, faces, count, rng=rng,
-                                                  sharp_angle=np.radians(sharp_angle_deg))
+        points, normals, face_index = sample_mesh(
+            vertices, faces, count, rng=rng, sharp_angle=np.radians(sharp_angle_deg)
+        )
     else:
         _, points, normals = loaded
         points = as_points(f"{source}: points", points)
@@ -160,6 +178,13 @@ def sample_object(source, *, count, rng, sharp_angle_deg, min_extent_m, max_exte
             raise BadInputError(f"{source}: some normals have zero length")
         face_index = np.full(len(points), -1)
         vertices, faces = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
-    return SurfaceSamples(points=points, normals=normals, face_index=face_index, vertices=vertices, faces=faces,
-                          spacing=median_spacing(points), source=source,
-                          key=content_key("sample", params, source_key))
+    return SurfaceSamples(
+        points=points,
+        normals=normals,
+        face_index=face_index,
+        vertices=vertices,
+        faces=faces,
+        spacing=median_spacing(points),
+        source=source,
+        key=content_key("sample", params, source_key),
+    )

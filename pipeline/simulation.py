@@ -112,8 +112,10 @@ def _shifted(poses, offsets, direction):
 def check_simulable(surface):
     """Refuse, in one line naming the file, an object without a closed mesh (a point cloud)."""
     if not len(surface.faces):
-        raise BadInputError(f"{surface.source}: a point cloud has no surface to try grasps on; give a closed "
-                            "mesh (for a scan: reconstruct one, e.g. open3d's Poisson reconstruction)")
+        raise BadInputError(
+            f"{surface.source}: a point cloud has no surface to try grasps on; give a closed "
+            "mesh (for a scan: reconstruct one, e.g. open3d's Poisson reconstruction)"
+        )
 
 
 class GraspEngine:
@@ -134,8 +136,12 @@ class GraspEngine:
         self.settings = TrialSettings(**{**SimulateParams().world_settings(), **settings})
         self.hand = hand
         self.model = hand_model(hand, spacing=self.settings.link_point_spacing_m)
-        self.mesh = ObjectMesh(surface.vertices, surface.faces, grid_cells=self.settings.grid_cells,
-                               edge_spacing=self.settings.link_point_spacing_m)
+        self.mesh = ObjectMesh(
+            surface.vertices,
+            surface.faces,
+            grid_cells=self.settings.grid_cells,
+            edge_spacing=self.settings.link_point_spacing_m,
+        )
         self.centre = mass_properties(self.mesh.vertices, self.mesh.faces)
         self.torque_scale = float(np.linalg.norm(self.mesh.vertices - self.centre, axis=1).max())
         self.near = max(self.settings.near_m, self.settings.contact_tolerance_m)
@@ -161,8 +167,12 @@ class GraspEngine:
         with np.errstate(invalid="ignore", divide="ignore"):
             approach = approach / np.linalg.norm(approach, axis=1, keepdims=True)
             side = np.linalg.norm(np.cross(approach, orient), axis=1)
-        valid = np.isfinite(grasp).all(axis=1) & np.isfinite(approach).all(axis=1) & np.isfinite(orient).all(axis=1) \
+        valid = (
+            np.isfinite(grasp).all(axis=1)
+            & np.isfinite(approach).all(axis=1)
+            & np.isfinite(orient).all(axis=1)
             & (side > tol.parallel)
+        )
         for number in np.flatnonzero(~valid):
             results[number] = TrialResult("error", message="candidate has a non-finite or zero P_d, or P_o along P_d")
         rows = np.flatnonzero(valid)
@@ -170,8 +180,10 @@ class GraspEngine:
             return results
         model = self.model
         start = time.perf_counter()
-        q = np.array([[self.hand.preshape(name)[joint] for joint in model.joints] for name in np.asarray(preshapes)[rows]],
-                     dtype=np.float64).reshape(len(rows), len(model.joints))
+        q = np.array(
+            [[self.hand.preshape(name)[joint] for joint in model.joints] for name in np.asarray(preshapes)[rows]],
+            dtype=np.float64,
+        ).reshape(len(rows), len(model.joints))
         base = base_poses(self.hand, grasp[rows], approach[rows], orient[rows])
         placed = link_poses(model, base, q)
         start = self._lap("place", start)
@@ -191,18 +203,33 @@ class GraspEngine:
         # the closed hands' touching pairs, measured all at once
         links = np.flatnonzero(model.link_radius > 0)
         owner = np.repeat(np.arange(len(rows)), len(links))
-        distance, touches = measure(self.mesh, model, poses, owner, np.tile(links, len(rows)), near=self.near,
-                                    tolerance=self.settings.contact_tolerance_m)
+        distance, touches = measure(
+            self.mesh,
+            model,
+            poses,
+            owner,
+            np.tile(links, len(rows)),
+            near=self.near,
+            tolerance=self.settings.contact_tolerance_m,
+        )
         distance = distance.reshape(len(rows), len(links))
         order = np.argsort(touches.pair, kind="stable")
         pair, points, normals = touches.pair[order], touches.points[order], touches.normals[order]
         starts = np.searchsorted(pair, np.arange(len(rows) + 1) * len(links))
         for position, number in enumerate(rows):
             found = slice(starts[position], starts[position + 1])
-            results[number] = self._score(distance[position], pair[found] - position * len(links), points[found],
-                                          normals[found], base[position], q[position], stops[position],
-                                          steps[position], float(final[position]),
-                                          float(retreat[position] - final[position]))
+            results[number] = self._score(
+                distance[position],
+                pair[found] - position * len(links),
+                points[found],
+                normals[found],
+                base[position],
+                q[position],
+                stops[position],
+                steps[position],
+                float(final[position]),
+                float(retreat[position] - final[position]),
+            )
         self._lap("contacts", start)
         return results
 
@@ -235,8 +262,9 @@ class GraspEngine:
         pending = np.flatnonzero(offset > 0)
         wanted = np.broadcast_to(self.model.link_radius > 0, (len(placed), len(self.model.links)))
         while len(pending):
-            gap = self._distances(_shifted(placed[pending], offset[pending], direction[pending]),
-                                  wanted[pending]).min(axis=1)
+            gap = self._distances(_shifted(placed[pending], offset[pending], direction[pending]), wanted[pending]).min(
+                axis=1
+            )
             going = gap > tolerance
             # a move no longer than the clearance less the tolerance keeps every link clear; one
             # approach step (<= the tolerance, by the params' check) is safe from above it
@@ -268,8 +296,9 @@ class GraspEngine:
             wanted = (active[rows].astype(float) @ model.moves) > 0
             pairs, links = np.nonzero(wanted & (model.link_radius > 0))
             distance = np.full(wanted.shape, np.inf)
-            distance[pairs, links], touches = measure(self.mesh, model, poses, pairs, links, near=self.near,
-                                                      tolerance=tolerance)
+            distance[pairs, links], touches = measure(
+                self.mesh, model, poses, pairs, links, near=self.near, tolerance=tolerance
+            )
             # a link within the tolerance stops its joints where closing presses it into the
             # object; one touching on its back, which closing moves away, goes on (OpenRAVE and
             # GraspIt stop a joint on the collision its motion would make)
@@ -325,16 +354,24 @@ class GraspEngine:
         ``points`` (t, 3) and ``normals`` (t, 3)."""
         model, settings = self.model, self.settings
         quaternion = Rotation.from_matrix(base[:3, :3]).as_quat()
-        pose = dict(retract_m=retract, approach_m=approach, base_position=tuple(map(float, base[:3, 3])),
-                    base_orientation=tuple(map(float, quaternion)), joint_positions=tuple(map(float, q)),
-                    close_steps=int(steps), finger_stops=tuple(STOPS[stop] for stop in stops))
+        pose = dict(
+            retract_m=retract,
+            approach_m=approach,
+            base_position=tuple(map(float, base[:3, 3])),
+            base_orientation=tuple(map(float, quaternion)),
+            joint_positions=tuple(map(float, q)),
+            close_steps=int(steps),
+            finger_stops=tuple(STOPS[stop] for stop in stops),
+        )
         links = np.flatnonzero(model.link_radius > 0)
         touched = links[distance <= settings.contact_tolerance_m]
         if (stops == 2).any():
             return TrialResult("step_cap", touched=tuple(model.links[link] for link in touched), **pose)
         bounds = np.flatnonzero(np.diff(pair, prepend=-1)) if len(pair) else np.zeros(0, np.int64)
-        regions = [(links[pair[start]], points[start:end], normals[start:end])
-                   for start, end in zip(bounds, list(bounds[1:]) + [len(pair)])]
+        regions = [
+            (links[pair[start]], points[start:end], normals[start:end])
+            for start, end in zip(bounds, list(bounds[1:]) + [len(pair)])
+        ]
         return grade(regions, model, settings, centre=self.centre, torque_scale=self.torque_scale, **pose)
 
 
@@ -359,16 +396,31 @@ def grade(regions, model, settings, *, centre, torque_scale, **pose):
         return TrialResult("no_contact", **pose)
     points, normals, owners = [], [], []
     for link, found, outward in regions:
-        keep = region_corners(found, outward, coplanar_deg=settings.coplanar_deg, max_corners=settings.max_link_contacts)
+        keep = region_corners(
+            found, outward, coplanar_deg=settings.coplanar_deg, max_corners=settings.max_link_contacts
+        )
         points.append(found[keep])
         normals.append(outward[keep])
         owners.append(np.full(len(keep), link))
     points, normals, owners = np.concatenate(points), np.concatenate(normals), np.concatenate(owners)
-    quality = epsilon_quality(points, -normals, mu=settings.mu, edges=settings.cone_edges, torque_scale=torque_scale,
-                              torsional_friction=settings.torsional_friction_m, center=centre)
-    return TrialResult("force_closure" if quality.force_closure else "no_force_closure", quality.epsilon,
-                       touched=tuple(model.links[link] for link in np.unique(owners)),
-                       contact_points=points, contact_normals=normals, contact_links=owners, **pose)
+    quality = epsilon_quality(
+        points,
+        -normals,
+        mu=settings.mu,
+        edges=settings.cone_edges,
+        torque_scale=torque_scale,
+        torsional_friction=settings.torsional_friction_m,
+        center=centre,
+    )
+    return TrialResult(
+        "force_closure" if quality.force_closure else "no_force_closure",
+        quality.epsilon,
+        touched=tuple(model.links[link] for link in np.unique(owners)),
+        contact_points=points,
+        contact_normals=normals,
+        contact_links=owners,
+        **pose,
+    )
 
 
 def hand_boxes(model, base_position, base_orientation, joints):

@@ -24,16 +24,29 @@ def build(spheres, *, cell_density=4.0):
     SphereGrid
     """
     grid = CellGrid.build(spheres.centers, cell_density=cell_density)
-    return SphereGrid(centers=spheres.centers, radii=spheres.radii, object_angle=spheres.object_angle,
-                      origin=grid.origin, dims=grid.dims, order=grid.order, cell_start=grid.cell_start,
-                      cell_size=grid.cell_size,
-                      key=content_key("sphere_grid", dict(cell_density=cell_density), spheres.key))
+    return SphereGrid(
+        centers=spheres.centers,
+        radii=spheres.radii,
+        object_angle=spheres.object_angle,
+        origin=grid.origin,
+        dims=grid.dims,
+        order=grid.order,
+        cell_start=grid.cell_start,
+        cell_size=grid.cell_size,
+        key=content_key("sphere_grid", dict(cell_density=cell_density), spheres.key),
+    )
 
 
 def cell_grid(sphere_grid):
     """The :class:`CellGrid` stored in a SphereGrid artefact (no rebuild)."""
-    return CellGrid(np.asarray(sphere_grid.centers), np.asarray(sphere_grid.origin), float(sphere_grid.cell_size),
-                    np.asarray(sphere_grid.dims), np.asarray(sphere_grid.order), np.asarray(sphere_grid.cell_start))
+    return CellGrid(
+        np.asarray(sphere_grid.centers),
+        np.asarray(sphere_grid.origin),
+        float(sphere_grid.cell_size),
+        np.asarray(sphere_grid.dims),
+        np.asarray(sphere_grid.order),
+        np.asarray(sphere_grid.cell_start),
+    )
 
 
 def neighbours(sphere_grid, queries, radius):

@@ -66,9 +66,17 @@ class Symmetry(_Artefact):
     key: str
 
     KIND = "symmetry"
-    ARRAYS = {"sphere_index": (np.int64, None), "class_id": (np.int64, None), "rho": (np.float64, None),
-              "eigenvalues": (np.float64, 3), "axes": (np.float64, 9), "cog": (np.float64, 3),
-              "neighbour_count": (np.int64, None), "centers": (np.float64, 3), "radii": (np.float64, None)}
+    ARRAYS = {
+        "sphere_index": (np.int64, None),
+        "class_id": (np.int64, None),
+        "rho": (np.float64, None),
+        "eigenvalues": (np.float64, 3),
+        "axes": (np.float64, 9),
+        "cog": (np.float64, 3),
+        "neighbour_count": (np.int64, None),
+        "centers": (np.float64, 3),
+        "radii": (np.float64, None),
+    }
 
     def __len__(self):
         return len(self.sphere_index)
@@ -172,9 +180,19 @@ def neighbourhood_pca(queries, radius, centroid, count, scatter):
     return values, axes, origin + mean, np.rint(members).astype(np.int64)
 
 
-def classify(sphere_grid, *, min_object_angle_deg=120.0, min_diameter_m=0.0, max_diameter_ratio=1.0,
-             search_radius=0.05, search_radius_unit="relative", rho_axis=0.01, rho_plane=0.4,
-             isolated_spread=0.05, pca_cell_fraction=0.25):
+def classify(
+    sphere_grid,
+    *,
+    min_object_angle_deg=120.0,
+    min_diameter_m=0.0,
+    max_diameter_ratio=1.0,
+    search_radius=0.05,
+    search_radius_unit="relative",
+    rho_axis=0.01,
+    rho_plane=0.4,
+    isolated_spread=0.05,
+    pca_cell_fraction=0.25,
+):
     """The ``classify`` stage as a pure function.
 
     Parameters
@@ -198,28 +216,41 @@ def classify(sphere_grid, *, min_object_angle_deg=120.0, min_diameter_m=0.0, max
     -------
     Symmetry
     """
-    params = dict(min_object_angle_deg=min_object_angle_deg, min_diameter_m=min_diameter_m,
-                  max_diameter_ratio=max_diameter_ratio, search_radius=search_radius,
-                  search_radius_unit=search_radius_unit, rho_axis=rho_axis, rho_plane=rho_plane,
-                  isolated_spread=isolated_spread, pca_cell_fraction=pca_cell_fraction)
+    params = dict(
+        min_object_angle_deg=min_object_angle_deg,
+        min_diameter_m=min_diameter_m,
+        max_diameter_ratio=max_diameter_ratio,
+        search_radius=search_radius,
+        search_radius_unit=search_radius_unit,
+        rho_axis=rho_axis,
+        rho_plane=rho_plane,
+        isolated_spread=isolated_spread,
+        pca_cell_fraction=pca_cell_fraction,
+    )
     if search_radius_unit not in ("relative", "metres"):
-        raise BadParamsError(f"params: classify.search_radius_unit must be 'relative' or 'metres', "
-                             f"got {search_radius_unit!r}")
+        raise BadParamsError(
+            f"params: classify.search_radius_unit must be 'relative' or 'metres', got {search_radius_unit!r}"
+        )
     centers, radii = np.asarray(sphere_grid.centers), np.asarray(sphere_grid.radii)
     if search_radius_unit == "relative":
         extent = np.ptp(np.concatenate([centers - radii[:, None], centers + radii[:, None]]), axis=0)
         radius = search_radius * float(np.linalg.norm(extent))
     else:
         radius = float(search_radius)
-    selected = select(sphere_grid, min_object_angle=np.radians(min_object_angle_deg),
-                      min_diameter=min_diameter_m, max_diameter_ratio=max_diameter_ratio)
+    selected = select(
+        sphere_grid,
+        min_object_angle=np.radians(min_object_angle_deg),
+        min_diameter=min_diameter_m,
+        max_diameter_ratio=max_diameter_ratio,
+    )
     if not len(selected):  # nothing passes the object-angle filter: no symmetry to find, no candidates
         eigenvalues, axes, cog, counts = np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0, int)
     else:  # only the reduced set takes part in the analysis (paper III-B)
         centroid, count, scatter, cell = cell_moments(centers[selected], pca_cell_fraction * radius)
         # one neighbourhood per cell, centred on the cell's centroid: the spheres of a cell share it
-        eigenvalues, axes, cog, counts = (value[cell] for value in neighbourhood_pca(centroid, radius, centroid,
-                                                                                     count, scatter))
+        eigenvalues, axes, cog, counts = (
+            value[cell] for value in neighbourhood_pca(centroid, radius, centroid, count, scatter)
+        )
     with np.errstate(divide="ignore", invalid="ignore"):
         rho = np.where(eigenvalues[:, 0] > 0, eigenvalues[:, 1] / eigenvalues[:, 0], np.nan)
     class_id = np.full(len(selected), INTERIOR)
@@ -228,7 +259,16 @@ def classify(sphere_grid, *, min_object_angle_deg=120.0, min_diameter_m=0.0, max
     class_id[(counts == 2) | (eigenvalues[:, 1] <= tol.pair_spread * eigenvalues[:, 0])] = PAIR
     spread = np.sqrt(eigenvalues[:, 0])
     class_id[(counts == 1) | (spread < isolated_spread * radii[selected])] = ISOLATED
-    return Symmetry(sphere_index=selected, class_id=class_id, rho=rho, eigenvalues=eigenvalues,
-                    axes=axes.reshape(-1, 9), cog=cog, neighbour_count=counts, centers=centers[selected],
-                    radii=radii[selected], search_radius=radius,
-                    key=content_key("classify", params, sphere_grid.key))
+    return Symmetry(
+        sphere_index=selected,
+        class_id=class_id,
+        rho=rho,
+        eigenvalues=eigenvalues,
+        axes=axes.reshape(-1, 9),
+        cog=cog,
+        neighbour_count=counts,
+        centers=centers[selected],
+        radii=radii[selected],
+        search_radius=radius,
+        key=content_key("classify", params, sphere_grid.key),
+    )

@@ -62,13 +62,19 @@ def baseline_candidates(surface, hand, count, seed):
     roll = rng.uniform(0.0, 2.0 * np.pi, count)[:, None]
     orient = np.cos(roll) * first + np.sin(roll) * second
     grasp = surface.points[picks]
-    return pd.DataFrame({
-        "hand": hand.name, "id": np.arange(count), "sphere_index": -1, "sphere_class": "surface",
-        "diameter_m": np.nan, "preshape": hand.default_preshape,
-        **{f"grasp_{axis}": grasp[:, k] for k, axis in enumerate("xyz")},
-        **{f"approach_{axis}": approach[:, k] for k, axis in enumerate("xyz")},
-        **{f"orient_{axis}": orient[:, k] for k, axis in enumerate("xyz")},
-    })
+    return pd.DataFrame(
+        {
+            "hand": hand.name,
+            "id": np.arange(count),
+            "sphere_index": -1,
+            "sphere_class": "surface",
+            "diameter_m": np.nan,
+            "preshape": hand.default_preshape,
+            **{f"grasp_{axis}": grasp[:, k] for k, axis in enumerate("xyz")},
+            **{f"approach_{axis}": approach[:, k] for k, axis in enumerate("xyz")},
+            **{f"orient_{axis}": orient[:, k] for k, axis in enumerate("xyz")},
+        }
+    )
 
 
 def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
@@ -93,9 +99,10 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
     """
     chunks = []  # (table number, hand number, targets)
     for number, (hand_number, table) in enumerate(tables):
-        targets = list(zip(vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"),
-                           table.preshape))
-        chunks += [(number, hand_number, targets[start:start + CHUNK]) for start in range(0, len(targets), CHUNK)]
+        targets = list(
+            zip(vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), table.preshape)
+        )
+        chunks += [(number, hand_number, targets[start : start + CHUNK]) for start in range(0, len(targets), CHUNK)]
     results = [[] for _ in tables]
     total = sum(len(table) for _, table in tables)
     if workers <= 1 or len(chunks) <= 1:
@@ -109,9 +116,12 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
             stop_worker()
         return results
     # spawn: the parent may hold threads (open3d, OpenMP) that fork would copy mid-flight
-    with concurrent.futures.ProcessPoolExecutor(min(workers, len(chunks)), multiprocessing.get_context("spawn"),
-                                                initializer=start_worker,
-                                                initargs=(surface, hands, settings)) as pool:
+    with concurrent.futures.ProcessPoolExecutor(
+        min(workers, len(chunks)),
+        multiprocessing.get_context("spawn"),
+        initializer=start_worker,
+        initargs=(surface, hands, settings),
+    ) as pool:
         done = pool.map(run_chunk, [chunk[1] for chunk in chunks], [chunk[2] for chunk in chunks])
         for (number, _, _), chunk in zip(chunks, done):
             results[number] += chunk
@@ -125,8 +135,9 @@ def default_workers(workers):
     return workers if workers > 0 else len(os.sched_getaffinity(0))
 
 
-def simulate(surface, candidates, hands, *, spheres_per_object, baseline_trials, seed=0,
-             workers=1, settings=None, progress=None):
+def simulate(
+    surface, candidates, hands, *, spheres_per_object, baseline_trials, seed=0, workers=1, settings=None, progress=None
+):
     """Trials of the selected MAT candidates and the baseline for every hand.
 
     Parameters
@@ -156,16 +167,24 @@ def simulate(surface, candidates, hands, *, spheres_per_object, baseline_trials,
         mat = select_candidates(candidates, hand.name, spheres_per_object, seed)
         count = len(mat) if baseline_trials < 0 else baseline_trials
         jobs += [("mat", number, mat), ("baseline", number, baseline_candidates(surface, hand, count, seed + 1000))]
-    results = run_trials(surface, hands, [(number, table) for _, number, table in jobs], settings or {},
-                         workers=workers, progress=progress)
+    results = run_trials(
+        surface,
+        hands,
+        [(number, table) for _, number, table in jobs],
+        settings or {},
+        workers=workers,
+        progress=progress,
+    )
     return _tables([(planner, hands[number], table, result) for (planner, number, table), result in zip(jobs, results)])
 
 
 def _tables(blocks):
     trial_rows, contact_rows, offset = [], [], 0
     for planner, hand, table, results in blocks:
-        frame = table[["id", "sphere_index", "sphere_class", "preshape"] + [
-            f"{prefix}_{axis}" for prefix in ("grasp", "approach", "orient") for axis in "xyz"]].copy()
+        frame = table[
+            ["id", "sphere_index", "sphere_class", "preshape"]
+            + [f"{prefix}_{axis}" for prefix in ("grasp", "approach", "orient") for axis in "xyz"]
+        ].copy()
         frame = frame.rename(columns={"id": "candidate_id"})
         frame["sphere_class"] = frame.sphere_class.astype(str)
         frame.insert(0, "hand", hand.name)
@@ -189,17 +208,31 @@ def _tables(blocks):
         trial_rows.append(frame)
         for number, result in enumerate(results):
             if len(result.contact_points):
-                contact_rows.append(pd.DataFrame({
-                    "trial": offset + number, "link": result.contact_links,
-                    **{axis: result.contact_points[:, k] for k, axis in enumerate("xyz")},
-                    **{f"n{axis}": result.contact_normals[:, k] for k, axis in enumerate("xyz")}}))
+                contact_rows.append(
+                    pd.DataFrame(
+                        {
+                            "trial": offset + number,
+                            "link": result.contact_links,
+                            **{axis: result.contact_points[:, k] for k, axis in enumerate("xyz")},
+                            **{f"n{axis}": result.contact_normals[:, k] for k, axis in enumerate("xyz")},
+                        }
+                    )
+                )
         offset += len(results)
     trials = pd.concat(trial_rows, ignore_index=True) if trial_rows else pd.DataFrame()
     if len(trials):
         trials["outcome"] = pd.Categorical(trials.outcome, categories=OUTCOMES)
-    contacts = pd.concat(contact_rows, ignore_index=True) if contact_rows else pd.DataFrame(
-        {"trial": pd.Series(dtype=np.int64), "link": pd.Series(dtype=np.int64),
-         **{name: pd.Series(dtype=float) for name in ("x", "y", "z", "nx", "ny", "nz")}})
+    contacts = (
+        pd.concat(contact_rows, ignore_index=True)
+        if contact_rows
+        else pd.DataFrame(
+            {
+                "trial": pd.Series(dtype=np.int64),
+                "link": pd.Series(dtype=np.int64),
+                **{name: pd.Series(dtype=float) for name in ("x", "y", "z", "nx", "ny", "nz")},
+            }
+        )
+    )
     return trials, contacts
 
 
@@ -223,6 +256,8 @@ def summary(trials):
     return {
         **summarise(mat),
         "baseline": summarise(baseline),
-        "per_hand": {hand: {"mat": summarise(mat[mat.hand == hand]), "baseline": summarise(baseline[baseline.hand == hand])}
-                     for hand in sorted(trials.hand.unique())},
+        "per_hand": {
+            hand: {"mat": summarise(mat[mat.hand == hand]), "baseline": summarise(baseline[baseline.hand == hand])}
+            for hand in sorted(trials.hand.unique())
+        },
     }

@@ -67,9 +67,11 @@ def pose_matrix(xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)):
     roll, pitch, yaw = rpy
     cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
     pose = np.eye(4)
-    pose[:3, :3] = [[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                    [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                    [-sp, cp * sr, cp * cr]]
+    pose[:3, :3] = [
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ]
     pose[:3, 3] = xyz
     return pose
 
@@ -96,7 +98,7 @@ def resolve_mesh(filename, urdf_path):
     name = filename
     for prefix in ("file://", "package://"):
         if name.startswith(prefix):
-            name = name[len(prefix):]
+            name = name[len(prefix) :]
     candidates = [Path(name)] if Path(name).is_absolute() else []
     parts = Path(name).parts
     folder = Path(urdf_path).resolve().parent
@@ -119,8 +121,9 @@ def _shape(collision, urdf_path, where):
     if element.tag == "sphere":
         return Shape("sphere", _floats(element.get("radius"), 1, where), pose)
     if element.tag in ("cylinder", "capsule"):
-        return Shape(element.tag, _floats(element.get("radius"), 1, where) + _floats(element.get("length"), 1, where),
-                     pose)
+        return Shape(
+            element.tag, _floats(element.get("radius"), 1, where) + _floats(element.get("length"), 1, where), pose
+        )
     if element.tag == "mesh":
         scale = _floats(element.get("scale", "1 1 1"), 3, where)
         return Shape("mesh", scale, pose, resolve_mesh(element.get("filename", ""), urdf_path))
@@ -153,8 +156,9 @@ def read_urdf(path, *, base_link=None, text=None):
         if kind not in JOINT_KINDS:
             raise BadParamsError(f"{where}: unsupported type {kind!r} (use {', '.join(JOINT_KINDS)})")
         parent, child = element.find("parent").get("link"), element.find("child").get("link")
-        axis = np.array(_floats(element.find("axis").get("xyz"), 3, where) if element.find("axis") is not None
-                        else (1.0, 0.0, 0.0))
+        axis = np.array(
+            _floats(element.find("axis").get("xyz"), 3, where) if element.find("axis") is not None else (1.0, 0.0, 0.0)
+        )
         if kind != "fixed" and not np.linalg.norm(axis) > 0:
             raise BadParamsError(f"{where}: zero axis")
         limit = element.find("limit")
@@ -165,8 +169,16 @@ def read_urdf(path, *, base_link=None, text=None):
         mimic = element.find("mimic")
         if mimic is not None:
             mimic = (mimic.get("joint"), float(mimic.get("multiplier", 1.0)), float(mimic.get("offset", 0.0)))
-        joints[child] = UrdfJoint(name, "revolute" if kind == "continuous" else kind, parent, child,
-                                  _origin(element, where), axis / (np.linalg.norm(axis) or 1.0), limits, mimic)
+        joints[child] = UrdfJoint(
+            name,
+            "revolute" if kind == "continuous" else kind,
+            parent,
+            child,
+            _origin(element, where),
+            axis / (np.linalg.norm(axis) or 1.0),
+            limits,
+            mimic,
+        )
         children.setdefault(parent, []).append(child)
     if base_link is None:
         roots = [name for name in links if name not in joints]
@@ -178,8 +190,10 @@ def read_urdf(path, *, base_link=None, text=None):
         link = queue.pop(0)
         order.append(link)
         queue += children.get(link, [])
-    shapes = {link: tuple(_shape(collision, path, f"{path}: link {link!r}") for collision in links[link].findall("collision"))
-              for link in order}
+    shapes = {
+        link: tuple(_shape(collision, path, f"{path}: link {link!r}") for collision in links[link].findall("collision"))
+        for link in order
+    }
     return Robot(root.get("name", ""), base_link, shapes, tuple(joints[link] for link in order[1:]), str(path))
 
 
@@ -192,8 +206,9 @@ def subtree_text(path, base_link):
     keep_links = {robot.root} | {joint.child for joint in robot.joints}
     keep_joints = {joint.name for joint in robot.joints}
     for element in list(root):
-        if (element.tag == "link" and element.get("name") not in keep_links) or \
-                (element.tag == "joint" and element.get("name") not in keep_joints):
+        if (element.tag == "link" and element.get("name") not in keep_links) or (
+            element.tag == "joint" and element.get("name") not in keep_joints
+        ):
             root.remove(element)
     for mesh in root.iter("mesh"):
         try:

@@ -14,15 +14,24 @@ from pipeline.symmetry import Symmetry
 def main(argv=None):
     args = stage_args(__doc__, "symmetry", "hand", "out", argv=argv)
     config = params()
-    used = {"hand": args.hand, "approach_directions": config.candidates.approach_directions,
-            "flipped_candidates": config.candidates.flipped_candidates}
+    used = {
+        "hand": args.hand,
+        "approach_directions": config.candidates.approach_directions,
+        "flipped_candidates": config.candidates.flipped_candidates,
+    }
     with stage_run(args, "candidates", params=used, inputs=[args.symmetry], outputs=[args.out]) as run:
-        table = generate_for_hands(Symmetry.load(args.symmetry), [get_hand(args.hand)],
-                                   approach_directions=used["approach_directions"],
-                                   flipped_candidates=used["flipped_candidates"])
+        table = generate_for_hands(
+            Symmetry.load(args.symmetry),
+            [get_hand(args.hand)],
+            approach_directions=used["approach_directions"],
+            flipped_candidates=used["flipped_candidates"],
+        )
         write_table(args.out, table)
-        run.count(candidates=len(table), spheres=int(table.sphere_index.nunique()),
-                  **{f"on_{name}": int(count) for name, count in table.sphere_class.value_counts().items()})
+        run.count(
+            candidates=len(table),
+            spheres=int(table.sphere_index.nunique()),
+            **{f"on_{name}": int(count) for name, count in table.sphere_class.value_counts().items()},
+        )
         if not len(table):
             run.warn(f"{args.out}: no candidate grasp for {args.hand} (no sphere of the reduced set fits the hand)")
     print(f"candidates {args.out}: {len(table)} for {args.hand}, on {table.sphere_index.nunique()} spheres")

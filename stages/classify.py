@@ -20,8 +20,9 @@ def main(argv=None):
     args = stage_args(__doc__, "sphere_grid", "surface", "out", argv=argv)
     config = params()
     used = dataclasses.asdict(config.classify)
-    with stage_run(args, "classify", params=used, inputs=[args.sphere_grid, args.surface], outputs=[args.out],
-                   record=config.record) as run:
+    with stage_run(
+        args, "classify", params=used, inputs=[args.sphere_grid, args.surface], outputs=[args.out], record=config.record
+    ) as run:
         grid = SphereGrid.load(args.sphere_grid)
         symmetry = classify(grid, **used)
         symmetry.save(args.out)
@@ -36,8 +37,10 @@ def main(argv=None):
             log_symmetry(stream, root, symmetry)
 
         record_stage(run, draw)
-    print(f"classify {args.out}: {len(symmetry)} spheres, "
-          + ", ".join(f"{name} {count}" for name, count in counts.items()))
+    print(
+        f"classify {args.out}: {len(symmetry)} spheres, "
+        + ", ".join(f"{name} {count}" for name, count in counts.items())
+    )
 
 
 if __name__ == "__main__":

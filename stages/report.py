@@ -27,8 +27,9 @@ def main(argv=None):
     args = stage_args(__doc__, "data", "out", argv=argv)
     config = params()
     out = Path(args.out)
-    runs = [(name, scale, hand) for name in config.objects for scale in config.scales
-            for hand in config.candidates.hands]
+    runs = [
+        (name, scale, hand) for name in config.objects for scale in config.scales for hand in config.candidates.hands
+    ]
     tables, timings = {}, []
     for name, scale, hand in runs:
         path = run_dir(args.data, name, scale, hand) / "trials.parquet"
@@ -37,8 +38,13 @@ def main(argv=None):
         tables[(name, scale, hand)] = read_table(path)
     for folder in {run_dir(args.data, name, scale) for name, scale, _ in runs}:
         timings += [json.loads(path.read_text()) for path in sorted(folder.rglob("timing/*.json"))]
-    used = {"seed": config.seed, "objects": list(config.objects), "scales": list(config.scales),
-            "hands": list(config.candidates.hands), **dataclasses.asdict(config.report)}
+    used = {
+        "seed": config.seed,
+        "objects": list(config.objects),
+        "scales": list(config.scales),
+        "hands": list(config.candidates.hands),
+        **dataclasses.asdict(config.report),
+    }
     inputs = [run_dir(args.data, *run) / "trials.parquet" for run in runs]
     with stage_run(args, "report", params=used, inputs=inputs) as run:
         trials = report.combine(tables)
@@ -52,19 +58,23 @@ def main(argv=None):
         atomic_write(out / "plots" / "epsilon.csv", lambda stream: epsilon.to_csv(stream, index=False))
         atomic_write(out / "metrics.json", lambda stream: stream.write(json_bytes(metrics, indent=2)))
         figures = write_figures(args.data, out, config, trials)
-        settings = (f"Protocol: {config.simulate.spheres_per_object} random spheres of the reduced set per object, "
-                    f"scale and hand, all their candidates tried, and as many surface-normal baseline trials; "
-                    f"mu = {config.simulate.mu:g}, {config.simulate.cone_edges} cone edges, seed {config.seed}. "
-                    f"Every trial: `trials.parquet` (pandas: `pd.read_parquet`).")
+        settings = (
+            f"Protocol: {config.simulate.spheres_per_object} random spheres of the reduced set per object, "
+            f"scale and hand, all their candidates tried, and as many surface-normal baseline trials; "
+            f"mu = {config.simulate.mu:g}, {config.simulate.cone_edges} cone edges, seed {config.seed}. "
+            f"Every trial: `trials.parquet` (pandas: `pd.read_parquet`)."
+        )
         text = report.markdown(table, metrics, report.timing_table(timings), figures=figures, settings=settings)
         atomic_write(out / "report.md", lambda stream: stream.write(text.encode()))
         run.count(trials=len(trials), runs=len(runs), figures=len(figures))
         run.outputs += [out / name for name in ("trials.parquet", "metrics.json", "report.md")]
         run.outputs += sorted((out / "plots").glob("*.csv")) + [out / path for _, path in figures]
-    print(f"report {out / 'report.md'}: {len(trials)} trials in {len(runs)} runs; MAT force closure "
-          f"{100 * metrics['mat']['force_closure_rate']:.1f} % vs baseline "
-          f"{100 * metrics['baseline']['force_closure_rate']:.1f} %; MAT above the baseline in "
-          f"{metrics['runs_mat_above_baseline']} of {metrics['runs_compared']} runs")
+    print(
+        f"report {out / 'report.md'}: {len(trials)} trials in {len(runs)} runs; MAT force closure "
+        f"{100 * metrics['mat']['force_closure_rate']:.1f} % vs baseline "
+        f"{100 * metrics['baseline']['force_closure_rate']:.1f} %; MAT above the baseline in "
+        f"{metrics['runs_mat_above_baseline']} of {metrics['runs_compared']} runs"
+    )
 
 
 def write_figures(data, out, config, trials):
@@ -90,20 +100,38 @@ def write_figures(data, out, config, trials):
             continue
         for scale in config.scales:
             folder = run_dir(data, name, scale)
-            candidates = [read_table(run_dir(data, name, scale, hand) / "candidates.parquet")
-                          for hand in config.candidates.hands]
-            image = figures.sphere_figure(MedialSpheres.load(folder / "spheres.npz"), Symmetry.load(folder / "symmetry.npz"),
-                                          pd.concat(candidates, ignore_index=True), title=f"{name} x{scale}")
-            captions.append((f"{name} x{scale}: medial spheres by diameter (red small, blue large); reduced set, "
-                             f"e1/e2 and candidate approaches by class", save(image, f"{name}-{scale}-spheres.png")))
+            candidates = [
+                read_table(run_dir(data, name, scale, hand) / "candidates.parquet") for hand in config.candidates.hands
+            ]
+            image = figures.sphere_figure(
+                MedialSpheres.load(folder / "spheres.npz"),
+                Symmetry.load(folder / "symmetry.npz"),
+                pd.concat(candidates, ignore_index=True),
+                title=f"{name} x{scale}",
+            )
+            captions.append(
+                (
+                    f"{name} x{scale}: medial spheres by diameter (red small, blue large); reduced set, "
+                    f"e1/e2 and candidate approaches by class",
+                    save(image, f"{name}-{scale}-spheres.png"),
+                )
+            )
             surface = SurfaceSamples.load(folder / "surface.npz")
             for hand_name in config.candidates.hands:
-                runs = trials[(trials.object == name) & (trials.scale == float(scale)) & (trials.hand == hand_name)
-                              & (trials.planner == "mat")].reset_index(drop=True)
+                runs = trials[
+                    (trials.object == name)
+                    & (trials.scale == float(scale))
+                    & (trials.hand == hand_name)
+                    & (trials.planner == "mat")
+                ].reset_index(drop=True)
                 images = figures.grasp_images(surface, get_hand(hand_name), runs, count=config.report.example_grasps)
                 if images:
-                    captions.append((f"{name} x{scale}, {hand_name}: the force-closure grasps with the highest epsilon",
-                                     save(figures.image_grid(images, len(images)), f"{name}-{scale}-{hand_name}-grasps.png")))
+                    captions.append(
+                        (
+                            f"{name} x{scale}, {hand_name}: the force-closure grasps with the highest epsilon",
+                            save(figures.image_grid(images, len(images)), f"{name}-{scale}-{hand_name}-grasps.png"),
+                        )
+                    )
     return captions
 
 

@@ -19,18 +19,31 @@ def main(argv=None):
     config = params()
     if args.object not in config.objects:
         raise BadParamsError(f"params.yaml: no object named {args.object!r} under 'objects'")
-    used = {"seed": config.seed, "object": args.object, "spec": config.objects[args.object],
-            "scale": float(args.scale), **dataclasses.asdict(config.sample)}
+    used = {
+        "seed": config.seed,
+        "object": args.object,
+        "spec": config.objects[args.object],
+        "scale": float(args.scale),
+        **dataclasses.asdict(config.sample),
+    }
     with stage_run(args, "sample", params=used, outputs=[args.out]) as run:
         source, scale, shape = parse_spec(args.object, config.objects[args.object])
-        surface = sample_object(source, scale=scale * float(args.scale), shape=shape,
-                                rng=np.random.default_rng(config.seed), source_key=source_key(source, shape),
-                                **dataclasses.asdict(config.sample))
+        surface = sample_object(
+            source,
+            scale=scale * float(args.scale),
+            shape=shape,
+            rng=np.random.default_rng(config.seed),
+            source_key=source_key(source, shape),
+            **dataclasses.asdict(config.sample),
+        )
         surface.save(args.out)
-        run.count(samples=len(surface.points), spacing_m=surface.spacing, mesh_vertices=len(surface.vertices),
-                  mesh_faces=len(surface.faces))
-    print(f"sample {args.object} x{args.scale}: {len(surface.points)} samples, "
-          f"spacing {surface.spacing * 1e3:.3f} mm")
+        run.count(
+            samples=len(surface.points),
+            spacing_m=surface.spacing,
+            mesh_vertices=len(surface.vertices),
+            mesh_faces=len(surface.faces),
+        )
+    print(f"sample {args.object} x{args.scale}: {len(surface.points)} samples, spacing {surface.spacing * 1e3:.3f} mm")
 
 
 if __name__ == "__main__":

@@ -21,21 +21,36 @@ def main(argv=None):
     args = stage_args(__doc__, "surface", "candidates", "hand", "trials", "contacts", argv=argv)
     config = params()
     used = {"seed": config.seed, "hand": args.hand, **dataclasses.asdict(config.simulate)}
-    with stage_run(args, "simulate", params=used, inputs=[args.surface, args.candidates],
-                   outputs=[args.trials, args.contacts], record=config.record) as run:
+    with stage_run(
+        args,
+        "simulate",
+        params=used,
+        inputs=[args.surface, args.candidates],
+        outputs=[args.trials, args.contacts],
+        record=config.record,
+    ) as run:
         hand = get_hand(args.hand)
         surface, candidates = SurfaceSamples.load(args.surface), read_table(args.candidates)
         with progress_bar(f"simulate {args.trials}") as progress:
-            trials, contacts = simulate(surface, candidates, [hand],
-                                        spheres_per_object=config.simulate.spheres_per_object,
-                                        baseline_trials=config.simulate.baseline_trials, seed=config.seed,
-                                        workers=default_workers(config.simulate.workers),
-                                        settings=config.simulate.world_settings(), progress=progress)
+            trials, contacts = simulate(
+                surface,
+                candidates,
+                [hand],
+                spheres_per_object=config.simulate.spheres_per_object,
+                baseline_trials=config.simulate.baseline_trials,
+                seed=config.seed,
+                workers=default_workers(config.simulate.workers),
+                settings=config.simulate.world_settings(),
+                progress=progress,
+            )
         write_table(args.contacts, contacts)
         write_table(args.trials, trials)
         result = summary(trials)
-        run.count(rows=len(trials), contacts=len(contacts),
-                  **{key: value for key, value in result.items() if key != "per_hand"})  # MAT, then baseline
+        run.count(
+            rows=len(trials),
+            contacts=len(contacts),
+            **{key: value for key, value in result.items() if key != "per_hand"},
+        )  # MAT, then baseline
         if not len(candidates):
             run.warn(f"{args.candidates}: no candidates, so no trials for {args.hand}")
         if run.log:
@@ -46,9 +61,11 @@ def main(argv=None):
             log_trials(stream, root, surface, hand, trials, contacts, settings=config.simulate.world_settings())
 
         record_stage(run, draw)
-    print(f"simulate {args.trials}: {result['trials']} MAT trials, force closure "
-          f"{result['force_closure_rate']:.1%} (baseline {result['baseline']['force_closure_rate']:.1%} "
-          f"of {result['baseline']['trials']})")
+    print(
+        f"simulate {args.trials}: {result['trials']} MAT trials, force closure "
+        f"{result['force_closure_rate']:.1%} (baseline {result['baseline']['force_closure_rate']:.1%} "
+        f"of {result['baseline']['trials']})"
+    )
 
 
 if __name__ == "__main__":

@@ -38,8 +38,9 @@ def complete_params(overrides=None):
         merge = isinstance(value, dict) and isinstance(params.get(key), dict) and key != "objects"
         params[key] = {**params[key], **value} if merge else value
     if "figure_objects" not in (overrides or {}).get("report", {}):
-        params["report"]["figure_objects"] = [name for name in params["report"]["figure_objects"]
-                                              if name in params["objects"]]
+        params["report"]["figure_objects"] = [
+            name for name in params["report"]["figure_objects"] if name in params["objects"]
+        ]
     return params
 
 

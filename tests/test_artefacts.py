@@ -8,8 +8,13 @@ from pipeline.errors import ArtefactError
 
 
 def spheres():
-    return MedialSpheres(centers=np.zeros((2, 3)), radii=np.array([1.0, 2.0]), contacts=np.array([[0, 1], [1, -1]]),
-                         object_angle=np.array([3.0, 0.0]), key="abc")
+    return MedialSpheres(
+        centers=np.zeros((2, 3)),
+        radii=np.array([1.0, 2.0]),
+        contacts=np.array([[0, 1], [1, -1]]),
+        object_angle=np.array([3.0, 0.0]),
+        key="abc",
+    )
 
 
 def test_round_trip(tmp_path):
@@ -42,5 +47,6 @@ def test_bad_files_give_one_line_errors(tmp_path):
 
 def test_shape_is_checked():
     with pytest.raises(ArtefactError, match="centers"):
-        MedialSpheres(centers=np.zeros((2, 2)), radii=np.ones(2), contacts=np.zeros((2, 1)),
-                      object_angle=np.ones(2), key="k")
+        MedialSpheres(
+            centers=np.zeros((2, 2)), radii=np.ones(2), contacts=np.zeros((2, 1)), object_angle=np.ones(2), key="k"
+        )

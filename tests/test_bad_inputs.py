@@ -19,8 +19,13 @@ def run_sample(tmp_path, spec, extra=None, missing=()):
     for section, key in missing:
         del (params[section] if key else params)[key or section]
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
-    result = subprocess.run([sys.executable, "-m", "stages.sample", "thing", "1.0", "out/surface.npz"], cwd=tmp_path,
-                            capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(REPO)})
+    result = subprocess.run(
+        [sys.executable, "-m", "stages.sample", "thing", "1.0", "out/surface.npz"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+    )
     return result, tmp_path / "out" / "surface.npz"
 
 
@@ -114,28 +119,32 @@ def test_two_overlapping_bodies_are_united(tmp_path):
     mesh = trimesh.Trimesh(SurfaceSamples.load(out).vertices, SurfaceSamples.load(out).faces)
     # union volume of a plus sign: 2 * 0.06*0.02*0.02 - 0.02^3
     assert mesh.is_watertight and len(mesh.split()) == 1
-    np.testing.assert_allclose(mesh.volume, 2 * 0.06 * 0.02 * 0.02 - 0.02 ** 3, rtol=1e-6)
+    np.testing.assert_allclose(mesh.volume, 2 * 0.06 * 0.02 * 0.02 - 0.02**3, rtol=1e-6)
 
 
-@pytest.mark.parametrize("extra, expected", [
-    ({"mat": {"tua": 0.1}}, "unknown key 'tua'"),
-    ({"mat": {"tau": "big"}}, "mat.tau must be float"),
-    ({"medial_axis": {"method": "cocone"}}, "medial_axis.method must be"),
-    ({"seed": -1}, "seed must be a non-negative int"),
-    ({"bogus": {}}, "unknown section 'bogus'"),
-    ({"simulate": {"mu": -0.5}}, "simulate.mu must be >= 0"),
-    ({"simulate": {"cone_edges": 2}}, "simulate.cone_edges must be >= 3"),
-    ({"simulate": {"baseline_trials": -2}}, "simulate.baseline_trials must be -1, 0 or a count"),
-    ({"candidates": {"hands": ["shadow"]}}, "candidates.hands must list built-in hands"),
-    ({"report": {"figure_objects": ["mug"]}}, "report.figure_objects names 'mug', which is not under objects"),
-    ({"missing": [("mat", "tau")]}, "mat: missing key 'tau'"),
-    ({"missing": [("classify", None)]}, "missing section 'classify'"),
-    ({"missing": [("seed", None)]}, "missing section 'seed'"),
-])
+@pytest.mark.parametrize(
+    "extra, expected",
+    [
+        ({"mat": {"tua": 0.1}}, "unknown key 'tua'"),
+        ({"mat": {"tau": "big"}}, "mat.tau must be float"),
+        ({"medial_axis": {"method": "cocone"}}, "medial_axis.method must be"),
+        ({"seed": -1}, "seed must be a non-negative int"),
+        ({"bogus": {}}, "unknown section 'bogus'"),
+        ({"simulate": {"mu": -0.5}}, "simulate.mu must be >= 0"),
+        ({"simulate": {"cone_edges": 2}}, "simulate.cone_edges must be >= 3"),
+        ({"simulate": {"baseline_trials": -2}}, "simulate.baseline_trials must be -1, 0 or a count"),
+        ({"candidates": {"hands": ["shadow"]}}, "candidates.hands must list built-in hands"),
+        ({"report": {"figure_objects": ["mug"]}}, "report.figure_objects names 'mug', which is not under objects"),
+        ({"missing": [("mat", "tau")]}, "mat: missing key 'tau'"),
+        ({"missing": [("classify", None)]}, "missing section 'classify'"),
+        ({"missing": [("seed", None)]}, "missing section 'seed'"),
+    ],
+)
 def test_broken_params_give_one_line(extra, expected, tmp_path):
     extra = dict(extra)
-    result, out = run_sample(tmp_path, {"source": "primitive:box", "extents": [0.1, 0.06, 0.02]}, extra,
-                             missing=extra.pop("missing", ()))
+    result, out = run_sample(
+        tmp_path, {"source": "primitive:box", "extents": [0.1, 0.06, 0.02]}, extra, missing=extra.pop("missing", ())
+    )
     assert result.returncode == 2
     assert result.stderr.count("\n") == 1 and expected in result.stderr and "params.yaml" in result.stderr
     assert not out.exists()
@@ -181,7 +190,7 @@ def test_planar_open_ends_are_capped():
         mesh = validate_mesh(tube, name="tube", min_extent=0.005, max_extent=5.0)
     assert mesh.is_watertight and mesh.is_winding_consistent and len(mesh.split(only_watertight=False)) == 1
     # the capped tube is the cylinder: pi r^2 h, less 0.04 % for the 128-gon section
-    np.testing.assert_allclose(mesh.volume, np.pi * 0.02 ** 2 * 0.1, rtol=0.01)
+    np.testing.assert_allclose(mesh.volume, np.pi * 0.02**2 * 0.1, rtol=0.01)
     assert np.array_equal(tube.vertices, before[0]) and np.array_equal(tube.faces, before[1])
     assert cap_planar_holes(tube).volume == pytest.approx(mesh.volume)
 

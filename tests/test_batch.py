@@ -23,7 +23,9 @@ from pipeline.plan import run_chain
 REPO = Path(__file__).resolve().parents[1]
 HANDS = ["barrett"]
 SCALE = 0.015  # the scale of pybullet's random_urdfs, as their URDFs give it
-PARAMS = complete_params({"seed": 0, "sample": {"count": 2000}, "simulate": {"spheres_per_object": 2, "baseline_trials": 2}})
+PARAMS = complete_params(
+    {"seed": 0, "sample": {"count": 2000}, "simulate": {"spheres_per_object": 2, "baseline_trials": 2}}
+)
 
 pytestmark = pytest.mark.slow
 
@@ -46,8 +48,9 @@ def dataset(tmp_path_factory):
 @pytest.fixture(scope="module")
 def finished(dataset):
     folder, params = dataset
-    counts = run_batch(find_meshes(folder / "meshes"), folder / "out", hands=HANDS, params=params, scale=SCALE,
-                       workers=2)
+    counts = run_batch(
+        find_meshes(folder / "meshes"), folder / "out", hands=HANDS, params=params, scale=SCALE, workers=2
+    )
     return counts, *read_results(folder / "out")
 
 
@@ -60,8 +63,9 @@ def test_batch_rows_match_plan_and_the_corrupt_mesh_is_one_error_row(dataset, fi
     assert error.object.tolist() == ["corrupt"] and "corrupt.obj" in error.reason.iloc[0]
     assert set(trials.object) == set(objects.object[objects.status == "ok"])
     for name in objects.object[objects.status == "ok"]:
-        artefacts, _ = run_chain(str(folder / "meshes" / f"{name}.obj"), params, scale=SCALE, seed=0, hands=HANDS,
-                                 simulate=True, workers=1)
+        artefacts, _ = run_chain(
+            str(folder / "meshes" / f"{name}.obj"), params, scale=SCALE, seed=0, hands=HANDS, simulate=True, workers=1
+        )
         mine = trials[trials.object == name].drop(columns="object").reset_index(drop=True)
         pd.testing.assert_frame_equal(mine, artefacts["trials"], check_categorical=False)
         row = objects[objects.object == name].iloc[0]
@@ -73,8 +77,9 @@ def test_a_rerun_on_a_finished_output_skips_every_object_without_ray(dataset, fi
 
     folder, params = dataset
     before = {path.name: path.stat().st_mtime_ns for path in (folder / "out").rglob("*.parquet")}
-    counts = run_batch(find_meshes(folder / "meshes"), folder / "out", hands=HANDS, params=params, scale=SCALE,
-                       workers=2)
+    counts = run_batch(
+        find_meshes(folder / "meshes"), folder / "out", hands=HANDS, params=params, scale=SCALE, workers=2
+    )
     assert counts["skipped"] == 10 and counts["ok"] == counts["error"] == counts["failed"] == 0
     assert counts["ray_start_s"] == 0 and not ray.is_initialized()
     assert {path.name: path.stat().st_mtime_ns for path in (folder / "out").rglob("*.parquet")} == before
@@ -83,10 +88,31 @@ def test_a_rerun_on_a_finished_output_skips_every_object_without_ray(dataset, fi
 def test_a_killed_batch_resumes_with_no_duplicated_or_missing_rows(dataset, finished, tmp_path):
     folder, params = dataset
     _, objects, trials = finished
-    command = [sys.executable, "-m", "pipeline", "batch", str(folder / "meshes"), "--hand", HANDS[0], "--out",
-               str(tmp_path / "out"), "--workers", "2", "--scale", str(SCALE), "--params", str(folder / "params.yaml")]
-    driver = subprocess.Popen(command, cwd=REPO, env={**os.environ, "PYTHONPATH": str(REPO)}, start_new_session=True,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    command = [
+        sys.executable,
+        "-m",
+        "pipeline",
+        "batch",
+        str(folder / "meshes"),
+        "--hand",
+        HANDS[0],
+        "--out",
+        str(tmp_path / "out"),
+        "--workers",
+        "2",
+        "--scale",
+        str(SCALE),
+        "--params",
+        str(folder / "params.yaml"),
+    ]
+    driver = subprocess.Popen(
+        command,
+        cwd=REPO,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+        start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     deadline = time.monotonic() + 120
     while len(list((tmp_path / "out" / "objects").glob("*.parquet"))) < 3 and time.monotonic() < deadline:
         time.sleep(0.05)
@@ -95,14 +121,18 @@ def test_a_killed_batch_resumes_with_no_duplicated_or_missing_rows(dataset, fini
     written = len(list((tmp_path / "out" / "objects").glob("*.parquet")))
     assert 3 <= written < 10, "the batch was not interrupted midway"
 
-    counts = run_batch(find_meshes(folder / "meshes"), tmp_path / "out", hands=HANDS, params=params, scale=SCALE,
-                       workers=2)
+    counts = run_batch(
+        find_meshes(folder / "meshes"), tmp_path / "out", hands=HANDS, params=params, scale=SCALE, workers=2
+    )
     assert counts["skipped"] == written and counts["ok"] + counts["error"] == 10 - written
     resumed, resumed_trials = read_results(tmp_path / "out")
     assert sorted(resumed.object) == sorted(objects.object)  # each object once
     key = ["object", "planner", "candidate_id"]
-    pd.testing.assert_frame_equal(resumed_trials.sort_values(key).reset_index(drop=True),
-                                  trials.sort_values(key).reset_index(drop=True), check_categorical=False)
+    pd.testing.assert_frame_equal(
+        resumed_trials.sort_values(key).reset_index(drop=True),
+        trials.sort_values(key).reset_index(drop=True),
+        check_categorical=False,
+    )
 
 
 def test_a_worker_crash_is_retried_once_then_recorded(dataset, tmp_path):
@@ -142,14 +172,48 @@ def test_the_same_command_joins_a_running_cluster(dataset, finished, tmp_path):
     folder, _ = dataset
     ray = [str(Path(sys.executable).parent / "ray")]
     env = {**os.environ, "PYTHONPATH": str(REPO), "RAY_USAGE_STATS_ENABLED": "0", "RAY_AUTH_MODE": "disabled"}
-    started = subprocess.run(ray + ["start", "--head", "--port", "6391", "--num-cpus", "2", "--include-dashboard=false",
-                                    "--disable-usage-stats"], env=env, capture_output=True, text=True)
+    started = subprocess.run(
+        ray
+        + [
+            "start",
+            "--head",
+            "--port",
+            "6391",
+            "--num-cpus",
+            "2",
+            "--include-dashboard=false",
+            "--disable-usage-stats",
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+    )
     assert started.returncode == 0, started.stderr
     try:
-        joined = subprocess.run([sys.executable, "-m", "pipeline", "batch", str(folder / "meshes"), "--hand", HANDS[0],
-                                 "--out", str(tmp_path / "out"), "--scale", str(SCALE), "--params",
-                                 str(folder / "params.yaml"), "--address", "127.0.0.1:6391"],
-                                cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+        joined = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "pipeline",
+                "batch",
+                str(folder / "meshes"),
+                "--hand",
+                HANDS[0],
+                "--out",
+                str(tmp_path / "out"),
+                "--scale",
+                str(SCALE),
+                "--params",
+                str(folder / "params.yaml"),
+                "--address",
+                "127.0.0.1:6391",
+            ],
+            cwd=tmp_path,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
     finally:
         subprocess.run(ray + ["stop"], env=env, capture_output=True)
     assert joined.returncode == 0, joined.stderr
@@ -158,8 +222,11 @@ def test_the_same_command_joins_a_running_cluster(dataset, finished, tmp_path):
     mine, my_trials = read_results(tmp_path / "out")
     assert sorted(mine.object) == sorted(objects.object)
     key = ["object", "planner", "candidate_id"]
-    pd.testing.assert_frame_equal(my_trials.sort_values(key).reset_index(drop=True),
-                                  trials.sort_values(key).reset_index(drop=True), check_categorical=False)
+    pd.testing.assert_frame_equal(
+        my_trials.sort_values(key).reset_index(drop=True),
+        trials.sort_values(key).reset_index(drop=True),
+        check_categorical=False,
+    )
 
 
 def test_find_meshes_names_by_stem_or_path_and_refuses_a_name_clash(tmp_path):

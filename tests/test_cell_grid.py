@@ -13,12 +13,12 @@ def brute_force(points, queries, radius):
 
 
 clouds = st.tuples(
-    st.integers(1, 400),                      # points
-    st.integers(1, 60),                       # queries
+    st.integers(1, 400),  # points
+    st.integers(1, 60),  # queries
     st.sampled_from(["cube", "flat", "line", "duplicates", "clustered"]),
-    st.floats(0.0, 0.6),                      # radius (bbox is ~1)
-    st.floats(0.5, 8.0),                      # cell density C
-    st.integers(0, 2**32 - 1),                # seed
+    st.floats(0.0, 0.6),  # radius (bbox is ~1)
+    st.floats(0.5, 8.0),  # cell density C
+    st.integers(0, 2**32 - 1),  # seed
 )
 
 
@@ -42,7 +42,7 @@ def test_query_radius_equals_brute_force(case):
     count, n_queries, layout, radius, density, seed = case
     rng = np.random.default_rng(seed)
     points = make_cloud(count, layout, rng)
-    queries = rng.random((n_queries, 3)) * 1.4 - 0.2   # some queries outside the bounding box
+    queries = rng.random((n_queries, 3)) * 1.4 - 0.2  # some queries outside the bounding box
     radii = rng.random(n_queries) * radius
     grid = CellGrid.build(points, cell_density=density)
     indptr, indices, distances = grid.query_radius(queries, radii)
@@ -50,12 +50,12 @@ def test_query_radius_equals_brute_force(case):
     unsorted_indptr, unsorted, _ = grid.query_radius(queries, radii, sort=False)
     assert np.array_equal(unsorted_indptr, indptr)
     for row in range(n_queries):
-        assert set(unsorted[indptr[row]:indptr[row + 1]]) == expected[row]
-        hits = indices[indptr[row]:indptr[row + 1]]
+        assert set(unsorted[indptr[row] : indptr[row + 1]]) == expected[row]
+        hits = indices[indptr[row] : indptr[row + 1]]
         assert set(hits) == expected[row]
         assert len(hits) == len(expected[row])
-        assert np.all(np.diff(distances[indptr[row]:indptr[row + 1]]) >= 0)
-        np.testing.assert_allclose(distances[indptr[row]:indptr[row + 1]], distance[row, hits], rtol=1e-12)
+        assert np.all(np.diff(distances[indptr[row] : indptr[row + 1]]) >= 0)
+        np.testing.assert_allclose(distances[indptr[row] : indptr[row + 1]], distance[row, hits], rtol=1e-12)
 
 
 @settings(max_examples=100, deadline=None)
@@ -76,7 +76,7 @@ def test_eq1_cubic_cells_about_n_over_c():
     rng = np.random.default_rng(0)
     points = rng.random((40000, 3)) * [10.0, 2.0, 1.0]
     grid = CellGrid.build(points, cell_density=4.0)
-    assert np.isscalar(grid.cell_size) or np.ndim(grid.cell_size) == 0   # one edge: cubes
+    assert np.isscalar(grid.cell_size) or np.ndim(grid.cell_size) == 0  # one edge: cubes
     cells = int(np.prod(grid.dims))
     assert 10000 <= cells <= 10000 * 1.5
     # cells are in proportion to the box edges: k1 (n/C)^(1/3) ... (n/C)^(1/3) / k1 for 10:2:1

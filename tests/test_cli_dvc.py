@@ -30,17 +30,48 @@ def run(args, cwd):
 @pytest.mark.slow
 def test_plan_writes_every_artefact_and_summary(tmp_path):
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(complete_params({"sample": {"count": 3000}})))
-    plan = [sys.executable, "-m", "pipeline", "plan", "primitive:box", "--seed", "3", "--params", "params.yaml",
-            "--spheres", "3", "--baseline", "4", "--workers", "1"]
+    plan = [
+        sys.executable,
+        "-m",
+        "pipeline",
+        "plan",
+        "primitive:box",
+        "--seed",
+        "3",
+        "--params",
+        "params.yaml",
+        "--spheres",
+        "3",
+        "--baseline",
+        "4",
+        "--workers",
+        "1",
+    ]
     result = run(plan + ["--out", "out"], tmp_path)
     assert result.returncode == 0, result.stderr
     names = {path.name for path in (tmp_path / "out").iterdir()}
-    assert names == {"surface.npz", "medial_axis.npz", "spheres.npz", "sphere_grid.npz", "symmetry.npz",
-                     "candidates.parquet", "trials.parquet", "contacts.parquet", "summary.json"}
+    assert names == {
+        "surface.npz",
+        "medial_axis.npz",
+        "spheres.npz",
+        "sphere_grid.npz",
+        "symmetry.npz",
+        "candidates.parquet",
+        "trials.parquet",
+        "contacts.parquet",
+        "summary.json",
+    }
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["counts"]["surface_samples"] == 3000 and summary["seed"] == 3
-    assert set(summary["timings_s"]) == {"sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates",
-                                         "simulate"}
+    assert set(summary["timings_s"]) == {
+        "sample",
+        "medial_axis",
+        "mat",
+        "sphere_grid",
+        "classify",
+        "candidates",
+        "simulate",
+    }
     trials = pd.read_parquet(tmp_path / "out" / "trials.parquet")
     mat = trials[trials.planner == "mat"]
     assert summary["trials"] == len(mat) > 0 and summary["baseline"]["trials"] == 2 * 4
@@ -54,8 +85,15 @@ def test_plan_writes_every_artefact_and_summary(tmp_path):
     # the same seed gives the same artefacts
     again = run(plan + ["--out", "again"], tmp_path)
     assert again.returncode == 0
-    for name in ("surface.npz", "spheres.npz", "sphere_grid.npz", "symmetry.npz", "candidates.parquet",
-                 "trials.parquet", "contacts.parquet"):
+    for name in (
+        "surface.npz",
+        "spheres.npz",
+        "sphere_grid.npz",
+        "symmetry.npz",
+        "candidates.parquet",
+        "trials.parquet",
+        "contacts.parquet",
+    ):
         assert (tmp_path / "out" / name).read_bytes() == (tmp_path / "again" / name).read_bytes()
 
 
@@ -65,10 +103,14 @@ def test_plan_on_bad_mesh_is_one_line(tmp_path):
     result = run([sys.executable, "-m", "pipeline", "plan", "broken.obj", "--out", "out"], tmp_path)
     assert result.returncode == 2 and result.stderr.startswith("error: broken.obj")
     assert result.stderr.count("\n") == 1 and not (tmp_path / "out").exists()
-    unknown = run([sys.executable, "-m", "pipeline", "plan", "primitive:box", "--hand", "shadow", "--out", "out"],
-                  tmp_path)
-    assert unknown.returncode == 2 and unknown.stderr == \
-        "error: unknown hand 'shadow' (built-in: armar3, barrett, parallel_jaw, franka; or a spec .yaml/.toml)\n"
+    unknown = run(
+        [sys.executable, "-m", "pipeline", "plan", "primitive:box", "--hand", "shadow", "--out", "out"], tmp_path
+    )
+    assert (
+        unknown.returncode == 2
+        and unknown.stderr
+        == "error: unknown hand 'shadow' (built-in: armar3, barrett, parallel_jaw, franka; or a spec .yaml/.toml)\n"
+    )
     assert not (tmp_path / "out").exists()
 
 
@@ -95,8 +137,9 @@ def tiny_project(tmp_path):
 
 def ran_stages(result):
     """Names (``simulate@box-1.0-armar3``) of the stages a dvc command ran, without their dvc.yaml."""
-    return {line.split("'")[1].split(":")[-1] for line in result.stdout.splitlines()
-            if line.startswith("Running stage")}
+    return {
+        line.split("'")[1].split(":")[-1] for line in result.stdout.splitlines() if line.startswith("Running stage")
+    }
 
 
 @pytest.mark.slow
@@ -106,7 +149,9 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     git = ["git", "-c", "user.name=t", "-c", "user.email=t@t"]
     first = run(dvc + ["repro"], tmp_path)
     assert first.returncode == 0, first.stderr + first.stdout
-    runs = [(name, scale, hand) for name in ("box", "capsule") for scale in (1.0, 0.5) for hand in ("armar3", "barrett")]
+    runs = [
+        (name, scale, hand) for name in ("box", "capsule") for scale in (1.0, 0.5) for hand in ("armar3", "barrett")
+    ]
     assert len(ran_stages(first)) == 4 * 5 + 8 * 2 + 1
 
     # the report: a row per object x scale x hand, every trial, metrics, plots, figures
@@ -116,8 +161,10 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
         assert sum(line.startswith(f"| {name} | {scale:g} | {hand} |") for line in text.splitlines()) == 1
     assert "| capsule |" in text.split("## Table I")[1].split("##")[0]
     trials = pd.read_parquet(out / "trials.parquet")
-    per_run = {run_key: pd.read_parquet(tmp_path / "data" / run_key[0] / str(run_key[1]) / run_key[2] / "trials.parquet")
-               for run_key in runs}
+    per_run = {
+        run_key: pd.read_parquet(tmp_path / "data" / run_key[0] / str(run_key[1]) / run_key[2] / "trials.parquet")
+        for run_key in runs
+    }
     assert len(trials) == sum(len(frame) for frame in per_run.values())
     for (name, scale, hand), frame in per_run.items():
         mat = frame[frame.planner == "mat"]
@@ -132,8 +179,10 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     plots = json.loads(run(dvc + ["plots", "show", "--json"], tmp_path).stdout)
     assert not plots.get("errors") and {"force_closure_pct", "epsilon_histogram"} <= set(plots["data"])
     bars = plots["data"]["force_closure_pct"][0]["content"]["data"]["values"]
-    assert len(bars) == 2 * 8 and {bar["filename"] for bar in bars} == {"force_closure_mat.csv",
-                                                                       "force_closure_baseline.csv"}
+    assert len(bars) == 2 * 8 and {bar["filename"] for bar in bars} == {
+        "force_closure_mat.csv",
+        "force_closure_baseline.csv",
+    }
     assert (out / "figures" / "capsule-1.0-spheres.png").stat().st_size > 10_000
     timings = pd.read_json(tmp_path / "data" / "box" / "1.0" / "armar3" / "timing" / "simulate.json", typ="series")
     assert timings["stage"] == "simulate" and timings["process_seconds"] > timings["seconds"] > 0
@@ -162,8 +211,9 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
         assert hashed[f"data/capsule/1.0/{hand}/trials.parquet"] == file_digest(folder / hand / "trials.parquet")[0]
         logged = [message for topic, message in messages if topic == "/trials"]
         for row in (int(trials_run.epsilon.idxmax()), len(trials_run) - 1):
-            assert [logged[row][key] for key in ("planner", "outcome", "sphere_index")] == \
-                [trials_run[key][row] for key in ("planner", "outcome", "sphere_index")]
+            assert [logged[row][key] for key in ("planner", "outcome", "sphere_index")] == [
+                trials_run[key][row] for key in ("planner", "outcome", "sphere_index")
+            ]
             assert logged[row]["epsilon"] == pytest.approx(trials_run.epsilon[row])
             assert logged[row]["joints"] == pytest.approx(list(trials_run.joints[row]))
 
@@ -184,11 +234,21 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     status = run(dvc + ["status", "--json"], tmp_path)
     stale = {key.split(":")[-1] for key in json.loads(status.stdout)}
     quality.write_text(original)
-    items = {entry.name: [f"{name}-{scale}" + (f"-{hand}" if entry.per_hand else "")
-                          for name in ("box", "capsule") for scale in (1.0, 0.5)
-                          for hand in (("armar3", "barrett") if entry.per_hand else ("",))] for entry in dag.STAGES}
-    expected = {f"{entry.name}@{item}" for entry in dag.STAGES if "pipeline/quality.py" in dag.code_deps(entry.name)
-                for item in items[entry.name]} | {"report"}
+    items = {
+        entry.name: [
+            f"{name}-{scale}" + (f"-{hand}" if entry.per_hand else "")
+            for name in ("box", "capsule")
+            for scale in (1.0, 0.5)
+            for hand in (("armar3", "barrett") if entry.per_hand else ("",))
+        ]
+        for entry in dag.STAGES
+    }
+    expected = {
+        f"{entry.name}@{item}"
+        for entry in dag.STAGES
+        if "pipeline/quality.py" in dag.code_deps(entry.name)
+        for item in items[entry.name]
+    } | {"report"}
     assert {"simulate@box-1.0-armar3", "classify@capsule-0.5"} <= stale == expected
     assert not any(key.startswith(("sample@", "mat@", "candidates@")) for key in stale)
     assert not json.loads(run(dvc + ["status", "--json"], tmp_path).stdout)
@@ -196,7 +256,9 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     # a parameter sweep with dvc exp: only what the parameter feeds reruns
     assert run(git + ["add", "-A"], tmp_path).returncode == 0
     assert run(git + ["commit", "-qm", "run"], tmp_path).returncode == 0
-    before = {key: (tmp_path / "data" / key[0] / str(key[1]) / key[2] / "candidates.parquet").read_bytes() for key in runs}
+    before = {
+        key: (tmp_path / "data" / key[0] / str(key[1]) / key[2] / "candidates.parquet").read_bytes() for key in runs
+    }
     swept = run(dvc + ["exp", "run", "-S", "classify.min_object_angle_deg=150"], tmp_path)
     assert swept.returncode == 0, swept.stderr + swept.stdout
     ran = ran_stages(swept)
@@ -219,8 +281,12 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     assert run(["git", "clone", "-q", str(tmp_path), str(clone)], tmp_path.parent).returncode == 0
     pulled = run(dvc + ["pull"], clone)
     assert pulled.returncode == 0, pulled.stderr
-    outputs = sorted(path.relative_to(tmp_path) for folder in ("data", "report", "logs")
-                     for path in (tmp_path / folder).rglob("*") if path.is_file() and path.name[0] != ".")
+    outputs = sorted(
+        path.relative_to(tmp_path)
+        for folder in ("data", "report", "logs")
+        for path in (tmp_path / folder).rglob("*")
+        if path.is_file() and path.name[0] != "."
+    )
     assert len(outputs) == 4 * 10 + 8 * 5 + 6 + len(list((out / "figures").iterdir())) + 4 * 6 + 8 * 3 + 1
     for relative in outputs:
         assert (clone / relative).read_bytes() == (tmp_path / relative).read_bytes()
@@ -232,18 +298,42 @@ def test_hands_cli_exports_a_hand_that_plan_accepts_and_renders_pictures(tmp_pat
     assert exported.returncode == 0, exported.stderr
     assert {path.name for path in (tmp_path / "myhand").iterdir()} == {"parallel_jaw.urdf", "parallel_jaw.yaml"}
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(complete_params({"sample": {"count": 3000}})))
-    planned = run([sys.executable, "-m", "pipeline", "plan", "primitive:box", "--hand", "myhand/parallel_jaw.yaml",
-                   "--params", "params.yaml", "--spheres", "2", "--baseline", "3", "--workers", "1", "--out", "out"],
-                  tmp_path)
+    planned = run(
+        [
+            sys.executable,
+            "-m",
+            "pipeline",
+            "plan",
+            "primitive:box",
+            "--hand",
+            "myhand/parallel_jaw.yaml",
+            "--params",
+            "params.yaml",
+            "--spheres",
+            "2",
+            "--baseline",
+            "3",
+            "--workers",
+            "1",
+            "--out",
+            "out",
+        ],
+        tmp_path,
+    )
     assert planned.returncode == 0, planned.stderr
     trials = pd.read_parquet(tmp_path / "out" / "trials.parquet")
     assert set(trials.hand) == {"parallel_jaw"} and (trials.planner == "baseline").sum() == 3
     rendered = run([sys.executable, "-m", "pipeline", "hands", "--render", "pictures"], tmp_path)
     assert rendered.returncode == 0, rendered.stderr
-    assert {path.name for path in (tmp_path / "pictures").iterdir()} == {"armar3.png", "barrett.png",
-                                                                         "parallel_jaw.png", "franka.png"}
-    bad = run([sys.executable, "-m", "pipeline", "plan", "primitive:box", "--hand", "nohand.yaml", "--out", "x"],
-              tmp_path)
+    assert {path.name for path in (tmp_path / "pictures").iterdir()} == {
+        "armar3.png",
+        "barrett.png",
+        "parallel_jaw.png",
+        "franka.png",
+    }
+    bad = run(
+        [sys.executable, "-m", "pipeline", "plan", "primitive:box", "--hand", "nohand.yaml", "--out", "x"], tmp_path
+    )
     assert bad.returncode == 2 and bad.stderr == "error: nohand.yaml: hand spec not found\n"
 
 
@@ -266,11 +356,39 @@ def test_plan_batch_and_dvc_make_the_same_artefacts(tmp_path):
     (project / "params.yaml").write_text(yaml.safe_dump(params))
     repro = run([sys.executable, "-m", "dvc", "repro"], project)
     assert repro.returncode == 0, repro.stderr + repro.stdout
-    planned = run([sys.executable, "-m", "pipeline", "plan", str(meshes / "block.obj"), "--params",
-                   str(project / "params.yaml"), "--out", str(tmp_path / "plan")], REPO)
+    planned = run(
+        [
+            sys.executable,
+            "-m",
+            "pipeline",
+            "plan",
+            str(meshes / "block.obj"),
+            "--params",
+            str(project / "params.yaml"),
+            "--out",
+            str(tmp_path / "plan"),
+        ],
+        REPO,
+    )
     assert planned.returncode == 0, planned.stderr
-    batch = run([sys.executable, "-m", "pipeline", "batch", str(meshes), "--hand", "barrett", "--params",
-                 str(project / "params.yaml"), "--workers", "1", "--out", str(tmp_path / "batch")], REPO)
+    batch = run(
+        [
+            sys.executable,
+            "-m",
+            "pipeline",
+            "batch",
+            str(meshes),
+            "--hand",
+            "barrett",
+            "--params",
+            str(project / "params.yaml"),
+            "--workers",
+            "1",
+            "--out",
+            str(tmp_path / "batch"),
+        ],
+        REPO,
+    )
     assert batch.returncode == 0, batch.stderr
 
     run_folder = project / "data" / "block" / "1.0"

@@ -19,16 +19,24 @@ def test_import_walk_finds_every_form(tmp_path, monkeypatch):
     (tmp_path / "pipeline" / "alpha.py").write_text("from .beta import thing\n")
     stage = tmp_path / "stages" / "demo.py"
     stage.parent.mkdir()
-    stage.write_text("import os\nimport pipeline.gamma\nfrom pipeline import delta, not_a_module\n"
-                     "from pipeline.alpha import x\n\ndef main():\n    from pipeline.epsilon import y\n")
+    stage.write_text(
+        "import os\nimport pipeline.gamma\nfrom pipeline import delta, not_a_module\n"
+        "from pipeline.alpha import x\n\ndef main():\n    from pipeline.epsilon import y\n"
+    )
     monkeypatch.setattr(dag, "ROOT", tmp_path)
     dag.code_deps.cache_clear()
     try:
         assert dag._imported(stage) == {"gamma", "delta", "alpha", "epsilon"}
         assert dag._imported(tmp_path / "pipeline" / "alpha.py") == {"beta"}
-        assert dag.code_deps("demo") == ("stages/demo.py", "pipeline/__init__.py", "pipeline/alpha.py",
-                                         "pipeline/beta.py", "pipeline/delta.py", "pipeline/epsilon.py",
-                                         "pipeline/gamma.py")
+        assert dag.code_deps("demo") == (
+            "stages/demo.py",
+            "pipeline/__init__.py",
+            "pipeline/alpha.py",
+            "pipeline/beta.py",
+            "pipeline/delta.py",
+            "pipeline/epsilon.py",
+            "pipeline/gamma.py",
+        )
     finally:
         dag.code_deps.cache_clear()
 
@@ -36,9 +44,19 @@ def test_import_walk_finds_every_form(tmp_path, monkeypatch):
 def test_code_deps_follow_the_imports_and_stay_tight():
     simulate = set(dag.code_deps("simulate"))
     # the trial engine's modules reach simulate only through pipeline.trials -> simulation
-    assert {"pipeline/trials.py", "pipeline/simulation.py", "pipeline/proximity.py", "pipeline/mesh_query.py",
-            "pipeline/contacts.py", "pipeline/quality.py", "pipeline/kinematics.py", "pipeline/urdf.py",
-            "pipeline/params.py", "pipeline/cli.py", "pipeline/artefacts.py"} <= simulate
+    assert {
+        "pipeline/trials.py",
+        "pipeline/simulation.py",
+        "pipeline/proximity.py",
+        "pipeline/mesh_query.py",
+        "pipeline/contacts.py",
+        "pipeline/quality.py",
+        "pipeline/kinematics.py",
+        "pipeline/urdf.py",
+        "pipeline/params.py",
+        "pipeline/cli.py",
+        "pipeline/artefacts.py",
+    } <= simulate
     # the geometry stages do not rerun when the trial engine changes
     for name in ("sample", "medial_axis", "mat", "sphere_grid", "candidates"):
         assert not {"pipeline/simulation.py", "pipeline/quality.py", "pipeline/recording.py"} & set(dag.code_deps(name))

@@ -10,8 +10,15 @@ import pytest
 from conftest import chain
 from pipeline.arrays import vectors
 from pipeline.errors import BadInputError
-from pipeline.figures import (CLASS_COLOURS, best_grasps, candidate_lines, diameter_colours, grasp_images,
-                              image_grid, sphere_figure)
+from pipeline.figures import (
+    CLASS_COLOURS,
+    best_grasps,
+    candidate_lines,
+    diameter_colours,
+    grasp_images,
+    image_grid,
+    sphere_figure,
+)
 from pipeline.hands import HANDS
 from pipeline.params import SampleParams
 from pipeline.render import render_hand
@@ -31,12 +38,34 @@ def cylinder_chain():
 def cylinder_trials():
     """Two Barrett trials on the 5 cm cylinder, approached orthogonally to its axis: both force
     closure (tests/test_simulation.py checks six such approaches)."""
-    surface = sample_object("primitive:cylinder", scale=1.0, shape=dict(radius=0.025, height=0.12),
-                            rng=np.random.default_rng(5), source_key="cylinder", **dataclasses.asdict(SampleParams()))
-    rows = [{"hand": "barrett", "id": k, "sphere_index": 0, "sphere_class": "axis", "diameter_m": 0.05,
-             "preshape": "parallel", "grasp_x": 0.0, "grasp_y": 0.0, "grasp_z": 0.01,
-             "approach_x": np.cos(angle), "approach_y": np.sin(angle), "approach_z": 0.0,
-             "orient_x": 0.0, "orient_y": 0.0, "orient_z": 1.0} for k, angle in enumerate((0.0, 2.0))]
+    surface = sample_object(
+        "primitive:cylinder",
+        scale=1.0,
+        shape=dict(radius=0.025, height=0.12),
+        rng=np.random.default_rng(5),
+        source_key="cylinder",
+        **dataclasses.asdict(SampleParams()),
+    )
+    rows = [
+        {
+            "hand": "barrett",
+            "id": k,
+            "sphere_index": 0,
+            "sphere_class": "axis",
+            "diameter_m": 0.05,
+            "preshape": "parallel",
+            "grasp_x": 0.0,
+            "grasp_y": 0.0,
+            "grasp_z": 0.01,
+            "approach_x": np.cos(angle),
+            "approach_y": np.sin(angle),
+            "approach_z": 0.0,
+            "orient_x": 0.0,
+            "orient_y": 0.0,
+            "orient_z": 1.0,
+        }
+        for k, angle in enumerate((0.0, 2.0))
+    ]
     trials, _ = simulate(surface, pd.DataFrame(rows), [BARRETT], spheres_per_object=1, baseline_trials=0, seed=1)
     assert (trials.outcome == "force_closure").all()
     return surface, trials
@@ -48,12 +77,16 @@ def colour_mask(image, rgb, tolerance=40):
 
 # -- diameter_colours ------------------------------------------------------------------------
 
-@pytest.mark.parametrize("diameters, expected", [
-    ([0.01, 0.02, 0.03], [[1, 0, 0], [0, 1, 0], [0, 0, 1]]),          # min red, midpoint green, max blue
-    ([0.03, 0.015, 0.01, 0.025], [[0, 0, 1], [0.5, 0.5, 0], [1, 0, 0], [0, 0.5, 0.5]]),  # linear in between
-    ([0.02, 0.02], [[0, 1, 0], [0, 1, 0]]),                          # constant: all green, no division by 0
-    ([0.07], [[0, 1, 0]]),
-])
+
+@pytest.mark.parametrize(
+    "diameters, expected",
+    [
+        ([0.01, 0.02, 0.03], [[1, 0, 0], [0, 1, 0], [0, 0, 1]]),  # min red, midpoint green, max blue
+        ([0.03, 0.015, 0.01, 0.025], [[0, 0, 1], [0.5, 0.5, 0], [1, 0, 0], [0, 0.5, 0.5]]),  # linear in between
+        ([0.02, 0.02], [[0, 1, 0], [0, 1, 0]]),  # constant: all green, no division by 0
+        ([0.07], [[0, 1, 0]]),
+    ],
+)
 def test_diameter_colours_known_answers(diameters, expected):
     values = np.array(diameters)
     before = values.copy()
@@ -72,6 +105,7 @@ def test_diameter_colours_rejects_bad_input_and_accepts_empty():
 
 
 # -- candidate lines and the sphere figure ---------------------------------------------------
+
 
 def test_candidate_lines_one_line_per_approach_starting_at_the_grasp_target():
     artefacts = cylinder_chain()
@@ -138,12 +172,13 @@ def test_sphere_figure_shows_coloured_spheres_and_candidate_lines():
 
 # -- grasp pictures ----------------------------------------------------------------------------
 
+
 def test_best_grasps_orders_by_epsilon_keeping_table_order_on_ties():
     _, trials = cylinder_trials()
     table = pd.concat([trials] * 3, ignore_index=True)
     table["epsilon"] = [0.1, 0.3, 0.3, 0.2, 0.5, 0.9]
-    table.loc[4, "planner"] = "baseline"       # not a MAT trial
-    table.loc[5, "outcome"] = "no_contact"     # not force closure
+    table.loc[4, "planner"] = "baseline"  # not a MAT trial
+    table.loc[5, "outcome"] = "no_contact"  # not force closure
     assert best_grasps(table, count=3).index.tolist() == [1, 2, 3]
     assert best_grasps(table, count=10).index.tolist() == [1, 2, 3, 0]
     assert best_grasps(table, hand="armar3").empty
@@ -156,7 +191,7 @@ def test_grasp_images_show_the_closed_hand_on_the_object():
     best = trials.loc[best_grasps(trials, count=1).index[0]]
     base = ((best.base_x, best.base_y, best.base_z), (best.base_qx, best.base_qy, best.base_qz, best.base_qw))
     for image in images:
-        orange = (image[..., 0] > 150) & (image[..., 2] < 120)            # the object
+        orange = (image[..., 0] > 150) & (image[..., 2] < 120)  # the object
         grey = (np.ptp(image.astype(int), axis=2) < 25) & (image.max(axis=2) < 230)  # the hand's links
         assert orange.mean() > 0.02 and grey.mean() > 0.05
     # the picture shows the trial's closed joints: with the open preshape the fingers move
@@ -182,6 +217,7 @@ def test_render_hand_rejects_an_unknown_frame():
 
 
 # -- image grid --------------------------------------------------------------------------------
+
 
 def test_image_grid_tiles_row_by_row_on_white():
     images = [np.full((10, 20, 3), value, np.uint8) for value in (10, 20, 30)]

@@ -60,8 +60,7 @@ def test_objects_validates_recursively_and_skips_bad_meshes_with_one_warning_eac
     out, err = capsys.readouterr()
     entries = yaml.safe_load(out)["objects"]
     assert list(entries) == ["box", "mug", "sub_dir-deeper-tube"]  # natural order of the stems
-    assert entries["sub_dir-deeper-tube"] == {"source": str(folder / "sub dir" / "deeper" / "tube.obj"),
-                                              "scale": 1.0}
+    assert entries["sub_dir-deeper-tube"] == {"source": str(folder / "sub dir" / "deeper" / "tube.obj"), "scale": 1.0}
     assert all(is_valid_name(name) and re.fullmatch(r"[A-Za-z][A-Za-z0-9_-]*", name) for name in entries)
     skipped = [line for line in warnings_of(err) if line.startswith("warning: skipped ")]
     assert len(skipped) == 2 and len(err.splitlines()) == 3  # 2 skipped, 1 capped; nothing else
@@ -215,8 +214,10 @@ def test_units_error_names_the_command_line_fix_in_one_line():
         check_size(np.array([[0, 0, 0], [100, 60, 20]]), name="part.stl", min_extent=0.005, max_extent=5.0)
     message = str(raised.value)
     assert message.startswith("part.stl: bounding-box diagonal 118.3 m") and "\n" not in message
-    assert "wrong units? (for a mesh in millimetres pass --scale 0.001, or set the object's scale in params.yaml)" \
+    assert (
+        "wrong units? (for a mesh in millimetres pass --scale 0.001, or set the object's scale in params.yaml)"
         in message
+    )
 
 
 def test_medial_grasp_command_works_outside_the_repository(tmp_path):
@@ -226,8 +227,13 @@ def test_medial_grasp_command_works_outside_the_repository(tmp_path):
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(complete_params({"sample": {"count": 3000}})))
     shown = subprocess.run([str(script), "objects", "--help"], cwd=tmp_path, capture_output=True, text=True, env=env)
     assert shown.returncode == 0 and "medial-grasp objects " in shown.stdout  # the examples name the command
-    planned = subprocess.run([str(script), "plan", "primitive:box", "--no-simulate", "--out", "out"], cwd=tmp_path,
-                             capture_output=True, text=True, env=env)
+    planned = subprocess.run(
+        [str(script), "plan", "primitive:box", "--no-simulate", "--out", "out"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        env=env,
+    )
     assert planned.returncode == 0, planned.stderr
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["counts"]["surface_samples"] == 3000  # this folder's params.yaml was read

@@ -85,6 +85,7 @@ def test_fig8_quarter_scale_giraffe_torso_is_graspable(hand):
 
 # --- Fig. 10: handles (and rims) are grasped, the hollow or thick body is not --------------------
 
+
 def mug_regions(points):
     """mug(): body radius 5 cm, 12 cm tall; handle ring of radius 3.5 cm about (0.05, 0, 0.06),
     tube 8 mm, outside the body; rim: the top centimetre of the wall."""

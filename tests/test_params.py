@@ -25,8 +25,9 @@ def test_repository_params_equal_the_defaults():
 
 
 def test_printed_defaults_are_a_complete_file(tmp_path):
-    printed = subprocess.run([sys.executable, "-m", "pipeline.params"], capture_output=True, text=True, cwd=REPO,
-                             check=True).stdout
+    printed = subprocess.run(
+        [sys.executable, "-m", "pipeline.params"], capture_output=True, text=True, cwd=REPO, check=True
+    ).stdout
     assert yaml.safe_load(printed) == defaults()
     (tmp_path / "params.yaml").write_text(printed)
     assert load_params(tmp_path / "params.yaml") == Params()
@@ -57,15 +58,27 @@ def test_library_defaults_agree_with_the_params():
     from pipeline.candidates import generate, generate_for_hands
     from pipeline.mat import reconstruct
     from pipeline.medial_axis import medial_axis
-    from pipeline.params import (CandidatesParams, ClassifyParams, MatParams, MedialAxisParams, SampleParams,
-                                 SphereGridParams)
+    from pipeline.params import (
+        CandidatesParams,
+        ClassifyParams,
+        MatParams,
+        MedialAxisParams,
+        SampleParams,
+        SphereGridParams,
+    )
     from pipeline.sampling import sample_object
     from pipeline.symmetry import classify
 
     checked = 0
-    for function, section in ((sample_object, SampleParams), (medial_axis, MedialAxisParams), (reconstruct, MatParams),
-                              (sphere_grid.build, SphereGridParams), (classify, ClassifyParams),
-                              (generate, CandidatesParams), (generate_for_hands, CandidatesParams)):
+    for function, section in (
+        (sample_object, SampleParams),
+        (medial_axis, MedialAxisParams),
+        (reconstruct, MatParams),
+        (sphere_grid.build, SphereGridParams),
+        (classify, ClassifyParams),
+        (generate, CandidatesParams),
+        (generate_for_hands, CandidatesParams),
+    ):
         default = section()
         for name, parameter in inspect.signature(function).parameters.items():
             if name in section.__dataclass_fields__ and parameter.default is not inspect.Parameter.empty:

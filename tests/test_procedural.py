@@ -32,8 +32,9 @@ def test_builders_make_one_watertight_solid_of_the_stated_size(name):
     assert len(mesh.split(only_watertight=False)) == 1
     np.testing.assert_allclose(mesh.extents, EXTENTS[name], atol=0.002)
     # the sample stage accepts it as a primitive source
-    surface = sample_object(f"primitive:{name}", rng=np.random.default_rng(0), source_key=name,
-                            **{**vars(SampleParams()), "count": 2000})
+    surface = sample_object(
+        f"primitive:{name}", rng=np.random.default_rng(0), source_key=name, **{**vars(SampleParams()), "count": 2000}
+    )
     assert len(surface.points) == 2000 and np.isfinite(surface.normals).all()
 
 

@@ -14,7 +14,7 @@ from scipy.spatial import ConvexHull
 from pipeline.errors import BadInputError
 from pipeline.quality import Quality, contact_wrenches, epsilon_quality, friction_cone
 
-A = 0.02      # half-width of the box between two antipodal fingers, metres
+A = 0.02  # half-width of the box between two antipodal fingers, metres
 OCTAGON = np.cos(np.pi / 8)  # inradius / circumradius of the 8-edge cone's cross-section
 NONE = Quality(0.0, 0.0, False)
 
@@ -75,6 +75,7 @@ def soft_antipodal_epsilon(a, torque_scale, gamma, mu):
 
 # --- cones and wrenches ---------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("mu", [0.2, 0.5, 1.0])
 @pytest.mark.parametrize("edges", [4, 8, 16])
 def test_cone_half_angle_is_atan_mu(mu, edges, rng):
@@ -89,7 +90,7 @@ def test_cone_half_angle_is_atan_mu(mu, edges, rng):
     angle = np.arccos(along / np.linalg.norm(cone, axis=2))
     np.testing.assert_allclose(angle, np.arctan(mu), atol=1e-12)
     # evenly spaced: consecutive tangential parts 2 pi / edges apart
-    step = np.einsum("nkj,nkj->nk", tangential, np.roll(tangential, -1, axis=1)) / mu ** 2
+    step = np.einsum("nkj,nkj->nk", tangential, np.roll(tangential, -1, axis=1)) / mu**2
     np.testing.assert_allclose(step, np.cos(2 * np.pi / edges), atol=1e-12)
 
 
@@ -105,21 +106,23 @@ def test_contact_wrenches_by_hand():
     """Contact at (a, 0, 0) + c pushing along -x: torque (p - c) x f = (0, -a fz, a fy)."""
     a, length, gamma, mu = 0.03, 0.06, 0.004, 0.5
     center = np.array([0.1, -0.2, 0.3])
-    wrenches = contact_wrenches([[a + 0.1, -0.2, 0.3]], [[-2.0, 0, 0]], mu=mu, torque_scale=length,
-                                torsional_friction=gamma, center=center)
+    wrenches = contact_wrenches(
+        [[a + 0.1, -0.2, 0.3]], [[-2.0, 0, 0]], mu=mu, torque_scale=length, torsional_friction=gamma, center=center
+    )
     assert wrenches.shape == (1, 10, 6)
     force, torque = wrenches[0, :, :3], wrenches[0, :, 3:]
     np.testing.assert_allclose(force[:8, 0], -1.0)
     np.testing.assert_allclose(np.hypot(force[:8, 1], force[:8, 2]), mu)
-    np.testing.assert_allclose(torque[:8], np.c_[np.zeros(8), -a * force[:8, 2], a * force[:8, 1]] / length,
-                               atol=1e-15)
+    np.testing.assert_allclose(torque[:8], np.c_[np.zeros(8), -a * force[:8, 2], a * force[:8, 1]] / length, atol=1e-15)
     # torsion: force n = -x, torque +-gamma n (the arm is parallel to n)
-    np.testing.assert_allclose(wrenches[0, 8:], [[-1, 0, 0, -gamma / length, 0, 0],
-                                                 [-1, 0, 0, gamma / length, 0, 0]], atol=1e-15)
+    np.testing.assert_allclose(
+        wrenches[0, 8:], [[-1, 0, 0, -gamma / length, 0, 0], [-1, 0, 0, gamma / length, 0, 0]], atol=1e-15
+    )
     assert contact_wrenches([[a, 0, 0]], [[-1.0, 0, 0]]).shape == (1, 8, 6)
 
 
 # --- analytic two-finger grasps -------------------------------------------------------------
+
 
 def test_antipodal_point_contacts_are_not_force_closure():
     """Two point contacts cannot resist torque about their line (Nguyen 1988): rank 5, flat."""
@@ -129,15 +132,18 @@ def test_antipodal_point_contacts_are_not_force_closure():
     assert epsilon_quality(points, normals, mu=0.5, torque_scale=A) == NONE
 
 
-@pytest.mark.parametrize("length, gamma, mu", [
-    (A, 0.005, 0.5),        # the weak-torsion branch: 1/sqrt((L/gamma)^2 + 1/(mu cos(pi/8))^2)
-    (A, 0.001, 0.2),
-    (A, 0.005, 1.0),
-    (A, 0.02, 0.5),         # strong torsion: 1/sqrt(1 + 2/(mu cos(pi/8))^2)
-    (A / 2, 0.005, 0.5),    # torque_scale below and above the lever arm
-    (2 * A, 0.005, 0.5),
-    (A / 2, 0.05, 0.5),
-])
+@pytest.mark.parametrize(
+    "length, gamma, mu",
+    [
+        (A, 0.005, 0.5),  # the weak-torsion branch: 1/sqrt((L/gamma)^2 + 1/(mu cos(pi/8))^2)
+        (A, 0.001, 0.2),
+        (A, 0.005, 1.0),
+        (A, 0.02, 0.5),  # strong torsion: 1/sqrt(1 + 2/(mu cos(pi/8))^2)
+        (A / 2, 0.005, 0.5),  # torque_scale below and above the lever arm
+        (2 * A, 0.005, 0.5),
+        (A / 2, 0.05, 0.5),
+    ],
+)
 def test_antipodal_soft_fingers_match_closed_form(length, gamma, mu):
     points, normals = antipodal()
     quality = epsilon_quality(points, normals, mu=mu, torque_scale=length, torsional_friction=gamma, volume=True)
@@ -194,13 +200,17 @@ def test_line_outside_the_cones_is_not_force_closure(gamma):
 
 # --- multi-finger grasps --------------------------------------------------------------------
 
-@pytest.mark.parametrize("grasp, length, expected", [
-    (four_faces, A, 0.3204264174890872),       # SLSQP
-    (three_ring, 0.03, 0.26903476269164944),   # SLSQP
-    # Qhull 2020.2 raises a precision error on these coplanar pads with its default options;
-    # the Q12 retry must still give the SLSQP value
-    (box_pads, 0.02, 0.44194173824159244),
-])
+
+@pytest.mark.parametrize(
+    "grasp, length, expected",
+    [
+        (four_faces, A, 0.3204264174890872),  # SLSQP
+        (three_ring, 0.03, 0.26903476269164944),  # SLSQP
+        # Qhull 2020.2 raises a precision error on these coplanar pads with its default options;
+        # the Q12 retry must still give the SLSQP value
+        (box_pads, 0.02, 0.44194173824159244),
+    ],
+)
 def test_point_contact_grasps_known_epsilon(grasp, length, expected):
     points, normals = grasp()
     quality = epsilon_quality(points, normals, mu=0.5, torque_scale=length, volume=True)
@@ -287,6 +297,7 @@ def test_volume_only_when_asked():
 
 # --- invariances ----------------------------------------------------------------------------
 
+
 def test_translation_invariance(rng):
     points, normals = four_faces()
     expected = epsilon_quality(points, normals, torque_scale=A).epsilon
@@ -327,12 +338,14 @@ def test_scaling_the_grasp_and_its_lengths_keeps_epsilon():
     center = np.array([0.001, 0.002, 0.003])
     options = dict(mu=0.5, torque_scale=A, torsional_friction=0.005, center=center)
     expected = epsilon_quality(points, normals, **options).epsilon
-    scaled = epsilon_quality(7 * points, normals, mu=0.5, torque_scale=7 * A, torsional_friction=7 * 0.005,
-                             center=7 * center)
+    scaled = epsilon_quality(
+        7 * points, normals, mu=0.5, torque_scale=7 * A, torsional_friction=7 * 0.005, center=7 * center
+    )
     assert expected > 0 and scaled.epsilon == pytest.approx(expected, abs=1e-9)
 
 
 # --- determinism, inputs, options -----------------------------------------------------------
+
 
 def test_deterministic_and_inputs_not_modified():
     points, normals = box_pads()
@@ -348,10 +361,15 @@ def test_deterministic_and_inputs_not_modified():
         np.testing.assert_array_equal(before, after)
 
 
-@pytest.mark.parametrize("options, word", [
-    (dict(mu=-0.1), "mu"), (dict(edges=2), "edges"), (dict(torque_scale=0.0), "torque_scale"),
-    (dict(torsional_friction=-1e-3), "torsional_friction"),
-])
+@pytest.mark.parametrize(
+    "options, word",
+    [
+        (dict(mu=-0.1), "mu"),
+        (dict(edges=2), "edges"),
+        (dict(torque_scale=0.0), "torque_scale"),
+        (dict(torsional_friction=-1e-3), "torsional_friction"),
+    ],
+)
 def test_bad_options_raise_naming_the_value(options, word):
     points, normals = four_faces()
     with pytest.raises(ValueError, match=word):

@@ -22,12 +22,20 @@ HANDS = ["armar3", "barrett"]
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
     folder = tmp_path_factory.mktemp("recorded")
-    params = Params(sample=SampleParams(count=3000), simulate=SimulateParams(spheres_per_object=2, baseline_trials=3,
-                                                                             workers=1))
+    params = Params(
+        sample=SampleParams(count=3000), simulate=SimulateParams(spheres_per_object=2, baseline_trials=3, workers=1)
+    )
     artefacts, timings = run_chain("primitive:capsule", params, seed=0, hands=HANDS, simulate=True)
     result = summary(artefacts, timings, source="primitive:capsule", scale=1.0, seed=0)
-    record_chain(folder / "capsule.rrd", folder / "capsule.mcap", artefacts, result, name="capsule",
-                 hands=[get_hand(hand) for hand in HANDS], settings=params.simulate.world_settings())
+    record_chain(
+        folder / "capsule.rrd",
+        folder / "capsule.mcap",
+        artefacts,
+        result,
+        name="capsule",
+        hands=[get_hand(hand) for hand in HANDS],
+        settings=params.simulate.world_settings(),
+    )
     artefacts["sample"].save(folder / "surface.npz")
     artefacts["sphere_grid"].save(folder / "sphere_grid.npz")
     return folder, artefacts
@@ -36,8 +44,11 @@ def recorded(tmp_path_factory):
 def rows_of(path, entity, timeline=False):
     """The record batches logged to ``entity`` in the .rrd at ``path``, concatenated (``timeline``:
     only those on a timeline, not static ones)."""
-    batches = [chunk.to_record_batch() for chunk in RrdReader(path).stream()
-               if chunk.entity_path == entity and not (timeline and chunk.is_static)]
+    batches = [
+        chunk.to_record_batch()
+        for chunk in RrdReader(path).stream()
+        if chunk.entity_path == entity and not (timeline and chunk.is_static)
+    ]
     assert batches, f"no chunk for {entity}"
     return pa.Table.from_batches(batches)
 
@@ -55,8 +66,9 @@ def test_rrd_holds_every_sphere_candidate_and_one_step_per_trial(recorded):
     trials = artefacts["trials"]
     for hand in HANDS:
         candidates = artefacts["candidates"]
-        assert instances(path, f"/capsule/candidates/{hand}/approach", "Arrows3D:vectors") == \
-            int((candidates.hand == hand).sum())
+        assert instances(path, f"/capsule/candidates/{hand}/approach", "Arrows3D:vectors") == int(
+            (candidates.hand == hand).sum()
+        )
         steps = rows_of(path, f"/capsule/outcome/{hand}").column("trial").to_pylist()
         own = trials[trials.hand == hand].reset_index(drop=True)
         assert sorted(steps) == list(range(len(own))) and len(own) > 0
@@ -76,16 +88,19 @@ def test_rrd_holds_every_sphere_candidate_and_one_step_per_trial(recorded):
 def test_mcap_counts_and_one_trial_match_the_trials_table(recorded):
     folder, artefacts = recorded
     with open(folder / "capsule.mcap", "rb") as stream:
-        messages = [(channel.topic, json.loads(message.data), schema.encoding)
-                    for schema, channel, message in make_reader(stream).iter_messages()]
+        messages = [
+            (channel.topic, json.loads(message.data), schema.encoding)
+            for schema, channel, message in make_reader(stream).iter_messages()
+        ]
     topics = [topic for topic, _, _ in messages]
     trials = artefacts["trials"]
     assert topics.count("/trials") == len(trials)
     assert topics[0] == "/stage" and messages[0][1] == {"stage": "plan", "event": "start"}
     assert messages[-1][1] == {"stage": "plan", "event": "end"}
     assert {encoding for _, _, encoding in messages} == {"jsonschema"}
-    assert topics.count("/timing") == len(("sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates",
-                                            "simulate"))
+    assert topics.count("/timing") == len(
+        ("sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate")
+    )
     logged = [payload for topic, payload, _ in messages if topic == "/trials"]
     row = trials.iloc[len(trials) // 2]
     sent = logged[len(trials) // 2]
@@ -99,15 +114,20 @@ def test_mcap_messages_are_strict_json_without_nan(tmp_path):
         log.log("/trials", {"epsilon": float("nan"), "base_x": np.float64("inf"), "joints": np.array([0.5, np.nan])})
     with open(tmp_path / "nan.mcap", "rb") as stream:
         raw = [message.data for _, _, message in make_reader(stream).iter_messages(topics=["/trials"])]
-    assert json.loads(raw[0], parse_constant=lambda name: pytest.fail(f"{name} in JSON")) == \
-        {"epsilon": None, "base_x": None, "joints": [0.5, None]}
+    assert json.loads(raw[0], parse_constant=lambda name: pytest.fail(f"{name} in JSON")) == {
+        "epsilon": None,
+        "base_x": None,
+        "joints": [0.5, None],
+    }
 
 
 def test_an_interrupted_recording_leaves_nothing_under_its_name(tmp_path):
     import rerun as rr
 
-    for opener, name in ((lambda path: rerun_recording(path, recording_id="x"), "broken.rrd"),
-                         (lambda path: mcap_log(path, "stage"), "broken.mcap")):
+    for opener, name in (
+        (lambda path: rerun_recording(path, recording_id="x"), "broken.rrd"),
+        (lambda path: mcap_log(path, "stage"), "broken.mcap"),
+    ):
         with pytest.raises(KeyboardInterrupt):
             with opener(tmp_path / name) as stream:
                 if name.endswith(".rrd"):
@@ -123,10 +143,25 @@ def run_classify_stage(folder, monkeypatch, *, record, grid="sphere_grid.npz"):
     from stages import classify
 
     monkeypatch.chdir(folder)
-    (folder / "params.yaml").write_text(yaml.safe_dump(complete_params({"record": record, "classify": {"search_radius": 0.05}})))
+    (folder / "params.yaml").write_text(
+        yaml.safe_dump(complete_params({"record": record, "classify": {"search_radius": 0.05}}))
+    )
     try:
-        classify.main([grid, "surface.npz", "symmetry.npz", "--timing", "timing.json", "--log", "logs/classify.mcap",
-                       "--rrd", "logs/object.rrd", "--recording-id", "capsule-1.0"])
+        classify.main(
+            [
+                grid,
+                "surface.npz",
+                "symmetry.npz",
+                "--timing",
+                "timing.json",
+                "--log",
+                "logs/classify.mcap",
+                "--rrd",
+                "logs/object.rrd",
+                "--recording-id",
+                "capsule-1.0",
+            ]
+        )
     except SystemExit as exit_:
         return exit_.code
     return 0
@@ -140,8 +175,11 @@ def test_a_stage_logs_hashes_counts_and_records_unless_turned_off(recorded, monk
     assert topics[0] == "/stage" and topics[-1] == "/stage" and topics.count("/params") == 1
     assert dict(messages)["/params"]["search_radius"] == 0.05
     hashed = {message["path"]: message for topic, message in messages if topic == "/artefacts"}
-    assert [hashed[path]["role"] for path in ("sphere_grid.npz", "surface.npz", "symmetry.npz")] == \
-        ["input", "input", "output"]
+    assert [hashed[path]["role"] for path in ("sphere_grid.npz", "surface.npz", "symmetry.npz")] == [
+        "input",
+        "input",
+        "output",
+    ]
     assert hashed["symmetry.npz"]["sha256"] == file_digest(folder / "symmetry.npz")[0]
     symmetry = artefacts["classify"]
     counts = dict(messages)["/counts"]

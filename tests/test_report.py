@@ -19,11 +19,18 @@ def trials_of(outcomes, epsilons, planner, hand="armar3"):
 def trials():
     # mug x1 armar3: MAT 3 of 4 force closure (eps .12 .22 .32), baseline 1 of 4 (eps .4)
     # mug x0.5 armar3: MAT 0 of 2, baseline 2 of 2 (eps .05 .15); ball x1 armar3: no trials at all
-    mug = pd.concat([trials_of(["force_closure"] * 3 + ["collision"], [.12, .22, .32, 0], "mat"),
-                     trials_of(["force_closure", "no_contact", "no_contact", "no_force_closure"], [.4, 0, 0, 0],
-                               "baseline")])
-    half = pd.concat([trials_of(["no_contact", "error"], [0, 0], "mat"),
-                      trials_of(["force_closure", "force_closure"], [.05, .15], "baseline")])
+    mug = pd.concat(
+        [
+            trials_of(["force_closure"] * 3 + ["collision"], [0.12, 0.22, 0.32, 0], "mat"),
+            trials_of(["force_closure", "no_contact", "no_contact", "no_force_closure"], [0.4, 0, 0, 0], "baseline"),
+        ]
+    )
+    half = pd.concat(
+        [
+            trials_of(["no_contact", "error"], [0, 0], "mat"),
+            trials_of(["force_closure", "force_closure"], [0.05, 0.15], "baseline"),
+        ]
+    )
     empty = pd.DataFrame({"planner": [], "hand": [], "outcome": [], "epsilon": []})
     return report.combine({("mug", 1.0, "armar3"): mug, ("mug", 0.5, "armar3"): half, ("ball", 1.0, "armar3"): empty})
 
@@ -56,16 +63,20 @@ def test_metrics_overall_per_hand_and_wins(trials):
 
 def test_markdown_has_a_row_per_run_and_names_the_losers(trials):
     table = report.results(trials, RUNS)
-    timings = report.timing_table([{"stage": "simulate", "seconds": 3.0, "process_seconds": 4.0, "record_seconds": 1.0},
-                                   {"stage": "sample", "seconds": 1.0, "process_seconds": 2.5},
-                                   {"stage": "sample", "seconds": 2.0}])
+    timings = report.timing_table(
+        [
+            {"stage": "simulate", "seconds": 3.0, "process_seconds": 4.0, "record_seconds": 1.0},
+            {"stage": "sample", "seconds": 1.0, "process_seconds": 2.5},
+            {"stage": "sample", "seconds": 2.0},
+        ]
+    )
     assert timings.stage.tolist() == ["sample", "simulate"] and timings.total_s.tolist() == [3.0, 3.0]
     assert timings.process_total_s.tolist() == [4.5, 4.0]  # a record without process time counts its work
     assert timings.record_total_s.tolist() == [0.0, 1.0]
     text = report.markdown(table, report.metrics(trials, table), timings, settings="protocol")
-    assert "| mug | 75.0 | 0.0 |" in text        # Table I: ARMAR-III x1, x0.5
-    assert "| ball | - |  |" in text              # no candidates: no rate, not 0 %
-    assert "| mug | 25.0 | 100.0 |" in text       # the baseline's Table I
+    assert "| mug | 75.0 | 0.0 |" in text  # Table I: ARMAR-III x1, x0.5
+    assert "| ball | - |  |" in text  # no candidates: no rate, not 0 %
+    assert "| mug | 25.0 | 100.0 |" in text  # the baseline's Table I
     assert "mug x0.5 armar3 (0.0 vs 100.0)" in text
     assert "Recording took 1.0 s of the stages' 8.5 s: it added 13.3 % to the run" in text  # 1 / (8.5 - 1)
     assert "Runs without MAT trials (no sphere of the reduced set fits the hand): ball x1 armar3" in text
@@ -95,7 +106,7 @@ def test_folder_entries_and_params_rewrite(tmp_path):
     assert list(folder_entries(folder, scale=0.001, only=["10"], prefix="chen_")) == ["chen_10"]
     with pytest.raises(BadInputError, match="no mesh named 7"):
         folder_entries(folder, only=["7"])
-    text = "seed: 0\n\nobjects:\n  # comment\n  box: {source: \"primitive:box\"}\n\n# next\nscales: [1.0]\n"
+    text = 'seed: 0\n\nobjects:\n  # comment\n  box: {source: "primitive:box"}\n\n# next\nscales: [1.0]\n'
     rewritten = replace_objects(text, entries)
     assert yaml.safe_load(rewritten) == {"seed": 0, "objects": entries, "scales": [1.0]}
     assert "# next\nscales" in rewritten

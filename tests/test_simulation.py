@@ -19,8 +19,14 @@ from pipeline.trials import baseline_candidates, run_trials, select_candidates, 
 
 @functools.lru_cache(maxsize=None)
 def surface(source, **shape):
-    return sample_object(source, scale=1.0, shape=shape or None, rng=np.random.default_rng(5), source_key=source,
-                         **dataclasses.asdict(SampleParams()))
+    return sample_object(
+        source,
+        scale=1.0,
+        shape=shape or None,
+        rng=np.random.default_rng(5),
+        source_key=source,
+        **dataclasses.asdict(SampleParams()),
+    )
 
 
 def cube():
@@ -125,8 +131,9 @@ def test_a_sphere_wider_than_the_hand_is_never_force_closure(name):
 
 def test_a_candidate_that_cannot_be_placed_is_an_error_row_and_the_others_run():
     engine = world("parallel_jaw", "cube")
-    results = engine.run([[0, 0, 0]] * 3, [[0, 0, -1], [0, 0, 0], [1, 0, 0]], [[1, 0, 0], [1, 0, 0], [1, 0, 0]],
-                         [None] * 3)
+    results = engine.run(
+        [[0, 0, 0]] * 3, [[0, 0, -1], [0, 0, 0], [1, 0, 0]], [[1, 0, 0], [1, 0, 0], [1, 0, 0]], [None] * 3
+    )
     assert [r.outcome for r in results][:2] == ["force_closure", "error"] and "P_d" in results[1].message
     assert results[2].outcome == "error"  # P_o along P_d
 
@@ -152,13 +159,16 @@ def test_exported_hand_loads_back_and_gives_the_same_trials(tmp_path):
         assert mine.epsilon == pytest.approx(theirs.epsilon, abs=1e-12)
 
 
-@pytest.mark.parametrize("edit, problem", [
-    (lambda spec: spec.pop("fingers"), "lacks fingers"),
-    (lambda spec: spec.update(urdf="missing.urdf"), "URDF 'missing.urdf' not found"),
-    (lambda spec: spec.update(wrap=[0, 0, 1]), "orthogonal unit vectors"),
-    (lambda spec: spec["preshapes"].update(parallel={"f1_prox": 9.0}), "outside its limits"),
-    (lambda spec: spec.update(thumbs=2), "unknown key 'thumbs'"),
-])
+@pytest.mark.parametrize(
+    "edit, problem",
+    [
+        (lambda spec: spec.pop("fingers"), "lacks fingers"),
+        (lambda spec: spec.update(urdf="missing.urdf"), "URDF 'missing.urdf' not found"),
+        (lambda spec: spec.update(wrap=[0, 0, 1]), "orthogonal unit vectors"),
+        (lambda spec: spec["preshapes"].update(parallel={"f1_prox": 9.0}), "outside its limits"),
+        (lambda spec: spec.update(thumbs=2), "unknown key 'thumbs'"),
+    ],
+)
 def test_bad_hand_specs_are_one_line_errors(tmp_path, edit, problem):
     import yaml
 
@@ -193,24 +203,42 @@ def test_simulate_tables_summary_and_worker_independence():
     rows = []
     for sphere in range(6):  # axis spheres at z = -0.03 .. 0.02, four approaches each
         for angle in np.linspace(0, 2 * np.pi, 4, endpoint=False):
-            rows.append({"hand": "barrett", "id": sphere * 64 + len(rows) % 4, "sphere_index": sphere,
-                         "sphere_class": "axis", "diameter_m": 0.05, "preshape": "parallel",
-                         "grasp_x": 0.0, "grasp_y": 0.0, "grasp_z": -0.03 + 0.01 * sphere,
-                         "approach_x": np.cos(angle), "approach_y": np.sin(angle), "approach_z": 0.0,
-                         "orient_x": 0.0, "orient_y": 0.0, "orient_z": 1.0})
+            rows.append(
+                {
+                    "hand": "barrett",
+                    "id": sphere * 64 + len(rows) % 4,
+                    "sphere_index": sphere,
+                    "sphere_class": "axis",
+                    "diameter_m": 0.05,
+                    "preshape": "parallel",
+                    "grasp_x": 0.0,
+                    "grasp_y": 0.0,
+                    "grasp_z": -0.03 + 0.01 * sphere,
+                    "approach_x": np.cos(angle),
+                    "approach_y": np.sin(angle),
+                    "approach_z": 0.0,
+                    "orient_x": 0.0,
+                    "orient_y": 0.0,
+                    "orient_z": 1.0,
+                }
+            )
     candidates = pd.DataFrame(rows)
     assert select_candidates(candidates, "barrett", 3, seed=1).sphere_index.nunique() == 3
-    trials, contacts = simulate(samples, candidates, [HANDS["barrett"]], spheres_per_object=3, baseline_trials=-1,
-                                seed=1, workers=1)
+    trials, contacts = simulate(
+        samples, candidates, [HANDS["barrett"]], spheres_per_object=3, baseline_trials=-1, seed=1, workers=1
+    )
     assert (trials.planner == "mat").sum() == 12 == (trials.planner == "baseline").sum()
     assert set(trials.outcome.astype(str)) <= set(OUTCOMES) and not (trials.outcome == "error").any()
     assert (trials.outcome[trials.planner == "mat"] == "force_closure").all()
-    assert contacts.groupby("trial").size().reindex(range(len(trials)), fill_value=0).tolist() == trials.contacts.tolist()
+    assert (
+        contacts.groupby("trial").size().reindex(range(len(trials)), fill_value=0).tolist() == trials.contacts.tolist()
+    )
     result = summarise(trials[trials.planner == "mat"])
     assert result["force_closure_rate"] == 1.0 and result["outcomes"]["force_closure"] == 12
     assert result["mean_epsilon"] == pytest.approx(trials.epsilon[trials.planner == "mat"].mean())
-    again, again_contacts = simulate(samples, candidates, [HANDS["barrett"]], spheres_per_object=3,
-                                     baseline_trials=-1, seed=1, workers=2)
+    again, again_contacts = simulate(
+        samples, candidates, [HANDS["barrett"]], spheres_per_object=3, baseline_trials=-1, seed=1, workers=2
+    )
     pd.testing.assert_frame_equal(trials, again)
     pd.testing.assert_frame_equal(contacts, again_contacts)
 
@@ -230,8 +258,13 @@ def test_hand_pictures_show_the_hand_open_and_closed_on_the_object(tmp_path):
 
     closed = closed_joints(HANDS["barrett"])
     assert closed["f1_prox"] == 2.44 and closed["f1_dist"] == pytest.approx(0.344 * 2.44)
-    path = render_open_closed(HANDS["barrett"], tmp_path / "barrett.png", surface=cylinder(),
-                              target=([0, 0, 0.01], [1, 0, 0], [0, 0, 1]), size=(120, 100))
+    path = render_open_closed(
+        HANDS["barrett"],
+        tmp_path / "barrett.png",
+        surface=cylinder(),
+        target=([0, 0, 0.01], [1, 0, 0], [0, 0, 1]),
+        size=(120, 100),
+    )
     image = np.asarray(Image.open(path))
     assert image.shape == (100, 240, 3)
     open_half, closed_half = image[:, :120].astype(int), image[:, 120:].astype(int)

@@ -15,7 +15,7 @@ def test_neighbours_equal_brute_force_on_a_real_grid(tmp_path):
     indptr, indices, _ = sphere_grid.neighbours(loaded, queries, 0.01)
     distance = np.linalg.norm(loaded.centers[None] - queries[:, None], axis=2)
     for row in range(len(queries)):
-        assert set(indices[indptr[row]:indptr[row + 1]]) == set(np.flatnonzero(distance[row] <= 0.01))
+        assert set(indices[indptr[row] : indptr[row + 1]]) == set(np.flatnonzero(distance[row] <= 0.01))
 
 
 def test_sphere_grid_keeps_every_sphere():

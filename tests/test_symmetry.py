@@ -18,8 +18,7 @@ ARMAR3 = get_hand("armar3")
 
 @functools.lru_cache(maxsize=None)
 def planned(source, scale=1.0):
-    artefacts, _ = run_chain(source, Params(sample=SampleParams(count=20000)), scale=scale, seed=7,
-                             hands=["armar3"])
+    artefacts, _ = run_chain(source, Params(sample=SampleParams(count=20000)), scale=scale, seed=7, hands=["armar3"])
     return artefacts
 
 
@@ -33,7 +32,7 @@ def test_tube_spheres_are_axes_with_orthogonal_approaches(name):
     on_body = np.isin(table.sphere_index, symmetry.sphere_index[body])
     approach, orient = vectors(table, "approach")[on_body], vectors(table, "orient")[on_body]
     z = np.array([0.0, 0.0, 1.0])
-    assert len(approach) == 8 * body.sum()          # 4 directions x flipped orientation (Simox)
+    assert len(approach) == 8 * body.sum()  # 4 directions x flipped orientation (Simox)
     # P_o = +-e1 and P_d orthogonal to it; e1 is the true axis to within 0.1 degree
     assert np.abs((approach * orient).sum(axis=1)).max() < 1e-6
     assert np.degrees(np.arccos(np.abs(orient @ z))).max() < 0.1
@@ -70,8 +69,8 @@ def test_plate_border_is_rim_middle_is_interior():
 def test_solid_sphere_is_isolated_with_six_approaches():
     symmetry = classify(chain("sphere")["sphere_grid"])
     assert len(symmetry) >= 1 and (symmetry.class_id == ISOLATED).all()
-    table = generate(symmetry, ARMAR3)            # medial spheres ~7.9 cm across: under 9.4 cm
-    assert (table.groupby("sphere_index").size() == 12).all()   # +-x, +-y, +-z, each with P_o flipped
+    table = generate(symmetry, ARMAR3)  # medial spheres ~7.9 cm across: under 9.4 cm
+    assert (table.groupby("sphere_index").size() == 12).all()  # +-x, +-y, +-z, each with P_o flipped
     approach = {tuple(row) for row in np.round(vectors(table, "approach"), 12)}
     assert approach == {tuple(row) for row in np.vstack([np.eye(3), -np.eye(3)])}
     assert np.abs((vectors(table, "approach") * vectors(table, "orient")).sum(axis=1)).max() == 0

@@ -40,8 +40,10 @@ def test_a_finger_that_stopped_on_contact_always_has_a_link_in_contact(name):
     """Property over random candidates on a cylinder and a box: a finger whose stop is
     'contact' has a link it moves among the trial's touched links, with contact rows."""
     rng = np.random.default_rng(3)
-    for shape in (surface("primitive:cylinder", radius=0.025, height=0.12),
-                  surface("primitive:box", extents=(0.05, 0.03, 0.08))):
+    for shape in (
+        surface("primitive:cylinder", radius=0.025, height=0.12),
+        surface("primitive:box", extents=(0.05, 0.03, 0.08)),
+    ):
         count = 12
         grasp = rng.normal(0.0, 0.01, (count, 3))
         approach = rng.normal(size=(count, 3))
@@ -83,8 +85,11 @@ def test_no_closed_hand_overlaps_the_object(name):
         approach /= np.linalg.norm(approach, axis=1, keepdims=True)
         orient = np.cross(approach, rng.normal(size=(count, 3)))
         engine = GraspEngine(shape, HANDS[name])
-        closed = [result for result in engine.run(grasp, approach, orient, [None] * count)
-                  if result.outcome in ("force_closure", "no_force_closure")]
+        closed = [
+            result
+            for result in engine.run(grasp, approach, orient, [None] * count)
+            if result.outcome in ("force_closure", "no_force_closure")
+        ]
         assert len(closed) >= count // 2
         base = np.tile(np.eye(4), (len(closed), 1, 1))
         base[:, :3, :3] = Rotation.from_quat([result.base_orientation for result in closed]).as_matrix()
@@ -110,7 +115,11 @@ def test_franka_from_an_exported_spec_gives_the_same_trial(tmp_path):
     user = get_hand(str(export_hand(HANDS["franka"], tmp_path)))
     assert user.base_link == "panda_hand" and user.limits == HANDS["franka"].limits
     mine, theirs = (GraspEngine(cube, hand).trial([0, 0, 0], [0, 0, -1], [1, 0, 0]) for hand in (user, HANDS["franka"]))
-    assert (mine.outcome, mine.joint_positions, mine.epsilon) == (theirs.outcome, theirs.joint_positions, theirs.epsilon)
+    assert (mine.outcome, mine.joint_positions, mine.epsilon) == (
+        theirs.outcome,
+        theirs.joint_positions,
+        theirs.epsilon,
+    )
 
 
 def test_a_mimic_joint_closes_with_its_ratio(tmp_path):
@@ -118,8 +127,10 @@ def test_a_mimic_joint_closes_with_its_ratio(tmp_path):
     the left slide reaches its limit and the right pad has moved half as far."""
     spec_path = export_hand(HANDS["parallel_jaw"], tmp_path)
     urdf = (tmp_path / "parallel_jaw.urdf").read_text()
-    urdf = urdf.replace('<joint name="right_slide" type="prismatic">',
-                        '<joint name="right_slide" type="prismatic"><mimic joint="left_slide" multiplier="0.5"/>')
+    urdf = urdf.replace(
+        '<joint name="right_slide" type="prismatic">',
+        '<joint name="right_slide" type="prismatic"><mimic joint="left_slide" multiplier="0.5"/>',
+    )
     (tmp_path / "parallel_jaw.urdf").write_text(urdf)
     spec = yaml.safe_load(spec_path.read_text())
     spec["fingers"] = [{"joints": ["left_slide"], "ratios": [1.0]}]
@@ -164,14 +175,17 @@ def test_results_do_not_depend_on_the_batch():
     together = engine.run(grasp, approach, orient, [None] * 10)
     alone = [engine.trial(*target) for target in zip(grasp, approach, orient)]
     for one, other in zip(together, alone):
-        assert (one.outcome, one.epsilon, one.joint_positions, one.touched) == \
-            (other.outcome, other.epsilon, other.joint_positions, other.touched)
+        assert (one.outcome, one.epsilon, one.joint_positions, one.touched) == (
+            other.outcome,
+            other.epsilon,
+            other.joint_positions,
+            other.touched,
+        )
 
 
 def test_a_point_cloud_is_refused_before_any_trial(tmp_path):
     mesh = surface("primitive:box", extents=(0.04, 0.04, 0.04))
-    cloud = dataclasses.replace(mesh, vertices=np.zeros((0, 3)), faces=np.zeros((0, 3), np.int64),
-                                source="scan.ply")
+    cloud = dataclasses.replace(mesh, vertices=np.zeros((0, 3)), faces=np.zeros((0, 3), np.int64), source="scan.ply")
     assert isinstance(cloud, SurfaceSamples)
     with pytest.raises(BadInputError, match="scan.ply: a point cloud has no surface"):
         check_simulable(cloud)
@@ -191,7 +205,9 @@ def test_link_distances_match_a_dense_brute_force_and_never_undershoot():
     checked = 0
     for _ in range(20):
         pose = np.eye(4)
-        pose[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0] * np.sign(np.linalg.det(np.linalg.qr(rng.normal(size=(3, 3)))[0]))
+        pose[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0] * np.sign(
+            np.linalg.det(np.linalg.qr(rng.normal(size=(3, 3)))[0])
+        )
         if np.linalg.det(pose[:3, :3]) < 0:
             pose[:3, 0] *= -1
         pose[:3, 3] = rng.normal(0.0, 0.06, 3)
@@ -236,7 +252,7 @@ def test_a_point_above_a_face_beside_an_obtuse_edge_is_at_its_plane_distance():
     segments, sides = _hull_edges(hull, planes)
     model = SimpleNamespace(planes=planes[None], piece_edges=segments[None], edge_planes=sides[None])
     face = np.array([0.0, np.cos(tilt), -np.sin(tilt)])  # along the +y roof face, down from the ridge
-    up = np.array([0.0, np.sin(tilt), np.cos(tilt)])     # the face's outward normal
+    up = np.array([0.0, np.sin(tilt), np.cos(tilt)])  # the face's outward normal
     point = 0.0002 * face + 0.0001 * up
     gap, normal = _piece_distance(model, np.zeros(1, np.int64), point[None], -up[None], near=0.004)
     assert gap[0] == pytest.approx(0.0001, abs=1e-12)
@@ -272,8 +288,13 @@ def test_outcomes_agree_with_the_pybullet_reference_on_the_duck():
     from pipeline.sampling import sample_object
     from pipeline.symmetry import classify
 
-    duck = sample_object("pybullet:duck.obj", scale=0.06, rng=np.random.default_rng(0), source_key="duck",
-                         **dataclasses.asdict(SampleParams()))
+    duck = sample_object(
+        "pybullet:duck.obj",
+        scale=0.06,
+        rng=np.random.default_rng(0),
+        source_key="duck",
+        **dataclasses.asdict(SampleParams()),
+    )
     grid = sphere_grid.build(reconstruct(duck, medial_axis(duck, **vars(MedialAxisParams())), **vars(MatParams())))
     symmetry = classify(grid, **vars(ClassifyParams()))
     for name in ("parallel_jaw", "barrett"):
