@@ -189,9 +189,11 @@ def _shape_points_and_hull(shape, spacing):
     return local @ rotation.T + translation, hull @ rotation.T + translation
 
 
-def _cover(hull, planes, cell=0.01):
+def _cover(hull, planes):
     """Spheres (centres (c, 3), radii (c,)) covering the convex piece with vertices ``hull`` and
-    ``planes``: near-cubic cells of at most ``cell`` (m) over its box, those that meet the piece."""
+    ``planes``: near-cubic cells of at most :attr:`pipeline.tol.Tolerances.cover_cell_m` over its
+    box, those that meet the piece."""
+    cell = tol.cover_cell_m
     low, high = hull.min(axis=0), hull.max(axis=0)
     counts = np.maximum(np.ceil((high - low) / cell - 1e-9).astype(int), 1)
     size = (high - low) / counts

@@ -15,6 +15,8 @@ threshold needs no exact query.
 from dataclasses import dataclass
 
 import numpy as np
+
+from .tol import tol
 from scipy.spatial import cKDTree
 
 
@@ -25,7 +27,7 @@ def _edge_points(vertices, faces, face_normals, spacing):
 
     mesh = trimesh.Trimesh(vertices, faces, process=False)
     pairs, edges = mesh.face_adjacency, mesh.face_adjacency_edges
-    bent = mesh.face_adjacency_angles > 1e-6
+    bent = mesh.face_adjacency_angles > tol.crease_rad
     start, end = vertices[edges[bent, 0]], vertices[edges[bent, 1]]
     counts = np.ceil(np.linalg.norm(end - start, axis=1) / spacing).astype(int) - 1
     owner = np.repeat(np.arange(len(start)), np.maximum(counts, 0))
@@ -145,8 +147,7 @@ class ObjectMesh:
         cell = np.clip(np.rint((points - self.origin) / self.voxel).astype(np.int64), 0, np.array(self.grid.shape) - 1)
         node = self.grid[cell[:, 0], cell[:, 1], cell[:, 2]]
         slack = np.linalg.norm(points - (self.origin + cell * self.voxel), axis=1)
-        # open3d's float32 distances are good to about 1e-7 of the object's size
-        slack += 1e-6 * self.voxel
+        slack += tol.grid_slack * self.voxel
         return node - slack, node + slack
 
     def clearance(self, points):

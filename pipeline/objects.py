@@ -27,12 +27,10 @@ import numpy as np
 import trimesh
 
 from .errors import BadInputError, BadParamsError
+from .tol import tol
 
 MESH_SUFFIXES = {".obj", ".stl", ".ply", ".off", ".glb", ".gltf"}
 
-CAP_PLANARITY = 0.01
-"""An open boundary loop is capped only if each of its vertices lies within this fraction of the
-loop's largest extent from the loop's best-fit plane (0.01: 0.1 mm on a 1 cm tube end)."""
 
 _PRIMITIVES = {
     "box": lambda extents=(0.10, 0.06, 0.02): trimesh.creation.box(extents=extents),
@@ -261,7 +259,7 @@ def validate_mesh(mesh, *, name, min_extent, max_extent):
         mesh = _unite(bodies, name)
     with np.errstate(divide="ignore", invalid="ignore"):  # trimesh's centre of mass divides by the volume
         volume = mesh.volume
-    if not abs(volume) > 1e-12 * diagonal**3:  # e.g. a flat sheet, whose outline was capped
+    if not abs(volume) > tol.flat_volume * diagonal**3:  # e.g. a flat sheet, whose outline was capped
         raise BadInputError(f"{name}: encloses zero volume")
     if volume < 0:
         mesh.invert()
@@ -275,7 +273,7 @@ def validate_mesh(mesh, *, name, min_extent, max_extent):
     return mesh
 
 
-def cap_planar_holes(mesh, *, planarity=CAP_PLANARITY):
+def cap_planar_holes(mesh, *, planarity=None):
     """Close every open boundary loop with a fan of triangles about its centroid, if all are safe to close.
 
     A loop is safe when it is simple (each of its vertices has one incoming and one outgoing
@@ -290,8 +288,8 @@ def cap_planar_holes(mesh, *, planarity=CAP_PLANARITY):
     ----------
     mesh : trimesh.Trimesh
         Never modified.
-    planarity : float
-        See :data:`CAP_PLANARITY`.
+    planarity : float, optional
+        Default :attr:`pipeline.tol.Tolerances.cap_planarity`.
 
     Returns
     -------
@@ -299,6 +297,7 @@ def cap_planar_holes(mesh, *, planarity=CAP_PLANARITY):
         A new mesh with one centroid vertex and one cap per loop; ``mesh`` itself when it has
         no open edge or any loop is not safe (the caller then rejects the open surface).
     """
+    planarity = tol.cap_planarity if planarity is None else planarity
     open_edges = mesh.edges[trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)]  # directed as in faces
     tails, heads = open_edges[:, 0], open_edges[:, 1]
     if len(open_edges) == 0 or len(np.unique(tails)) < len(tails) or not np.array_equal(np.sort(tails), np.sort(heads)):

@@ -37,6 +37,7 @@ from .checks import as_points
 from .tol import tol
 
 GROW_FACETS = 8  # facets whose farthest wrench joins the grown hull per round
+FACET_BLOCK = 64  # facets projected at once, nearest first, until the rest cannot matter
 # Without pre-merging (Q0) Qhull is 2-3x faster in 6D and the facet offsets are the same; when
 # it reports a precision error, co-planar cone edges of symmetric grasps (box pads, rings of
 # fingers) need merging (Qx), sometimes wide merges (Q12); joggle (QJ, error ~1e-9 relative) is
@@ -157,6 +158,25 @@ def _hull(wrenches):
     return None
 
 
+def _supports(wrenches, equations, distance):
+    """The hull facets (indices, in order of ``distance``, stable) whose support can set the
+    smallest one, the wrenches' projections on their normals (n, k) and their supports (k,).
+
+    A facet's support is at least its own distance (its vertices are wrenches), so once the
+    smallest support found is below the next facet's distance, the farther facets can change
+    neither that minimum nor which facets lie below it: they are never projected (a hull of
+    hundreds of wrenches has thousands of facets, nearly all of them far)."""
+    order = np.argsort(distance, kind="stable")
+    parts, upper, done = [], np.inf, 0
+    while done < len(order) and distance[order[done]] < upper:
+        block = order[done : done + FACET_BLOCK]
+        parts.append(wrenches @ equations[block, :-1].T)
+        upper = min(upper, parts[-1].max(axis=0).min())
+        done += len(block)
+    along = np.concatenate(parts, axis=1)
+    return order[:done], along, along.max(axis=0)
+
+
 def _nearest_facet(wrenches):
     """Signed distance from the origin to the nearest facet of the hull of (n, 6) full-rank
     ``wrenches`` (negative when the origin is outside), or None when Qhull fails."""
@@ -171,18 +191,17 @@ def _nearest_facet(wrenches):
             return None
         # equations rows are [unit normal, offset] with normal . x + offset <= 0 inside
         distance = -hull.equations[:, -1]
-        along = wrenches @ hull.equations[:, :-1].T
-        support = along.max(axis=0)
         # the small hull's epsilon bounds the whole one's from below, the whole one's support
         # along any unit direction from above (and a support <= 0 puts the origin outside)
+        facets, along, support = _supports(wrenches, hull.equations, distance)
         lower, upper = distance.min(), support.min()
         if upper <= tol.hull_inside or upper - lower <= tol.hull_beyond:
             return float(min(lower, upper))
         # the nearest facets below the upper bound get their farthest wrench (the nearest one is
         # among them: its support is at least the upper bound, so a wrench lies beyond it); a
         # few per round gave the smallest hulls (measured: 8 of them, 25 % faster than all)
-        wanted = np.flatnonzero((support - distance > tol.hull_beyond) & (distance < upper))
-        wanted = wanted[np.argsort(distance[wanted], kind="stable")[:GROW_FACETS]]
+        wanted = np.flatnonzero((support - distance[facets] > tol.hull_beyond) & (distance[facets] < upper))
+        wanted = wanted[:GROW_FACETS]  # facets are in order of distance
         grown = np.union1d(chosen, along[:, wanted].argmax(axis=0))
         if len(grown) == len(chosen):  # a joggled (QJ) hull's facets can miss its own points
             return None

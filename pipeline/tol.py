@@ -39,6 +39,20 @@ class Tolerances:
     pair_spread: float = 1e-12
     """A neighbourhood whose second PCA eigenvalue is below this x the first lies on a line: a
     ``pair`` (:mod:`pipeline.symmetry`)."""
+    cap_planarity: float = 0.01
+    """An open boundary loop is capped only if each of its vertices lies within this fraction of
+    the loop's largest extent from its best-fit plane (0.1 mm on a 1 cm tube end;
+    :mod:`pipeline.objects`)."""
+    flat_volume: float = 1e-12
+    """A mesh whose volume is below this x its bounding-box diagonal cubed is a flat sheet (objects)."""
+    crease_rad: float = 1e-6
+    """Mesh edges whose faces meet at a larger angle are measured along their length
+    (:mod:`pipeline.mesh_query`)."""
+    grid_slack: float = 1e-6
+    """Slack, as a fraction of a cell, added to the distance grid's bounds for open3d's float32
+    distances (good to about 1e-7 of the object's size; mesh_query)."""
+    cover_cell_m: float = 0.01
+    """Largest cell of the spheres covering a hand link's convex piece (kinematics)."""
 
 
 tol = Tolerances()

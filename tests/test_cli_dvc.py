@@ -17,6 +17,7 @@ from test_recording import instances, rows_of
 from pipeline import dag
 from pipeline.artefacts import MedialSpheres
 from pipeline.logbook import file_digest, read_log
+from pipeline.objects import load_source
 from pipeline.symmetry import Symmetry
 
 REPO = Path(__file__).resolve().parents[1]
@@ -122,13 +123,25 @@ def tiny_project(tmp_path):
             shutil.copytree(source, tmp_path / name, ignore=shutil.ignore_patterns("__pycache__"))
         else:
             shutil.copy(source, tmp_path / name)
+    # the objects as a newcomer lists them: a folder of meshes, through `objects --write`
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    for name in ("box", "capsule"):
+        load_source(f"primitive:{name}")[1].export(meshes / f"{name}.obj")
     params = yaml.safe_load((REPO / "params.yaml").read_text())
-    params["objects"] = {"box": {"source": "primitive:box"}, "capsule": {"source": "primitive:capsule"}}
+    params["objects"] = {}
     params["scales"] = [1.0, 0.5]
     params["sample"]["count"] = 2000
     params["simulate"].update(spheres_per_object=5, workers=1)
-    params["report"].update(figure_objects=["capsule"], example_grasps=1)
+    params["report"].update(example_grasps=1)
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
+    listed = run([sys.executable, "-m", "pipeline", "objects", "meshes", "--write", "params.yaml"], tmp_path)
+    assert listed.returncode == 0, listed.stderr
+    params = yaml.safe_load((tmp_path / "params.yaml").read_text())
+    assert params["objects"] == {
+        name: {"source": str((meshes / f"{name}.obj").resolve()), "scale": 1.0} for name in ("box", "capsule")
+    }
+    assert params["report"]["figure_objects"] == ["box", "capsule"]  # the repository's mug, kettle... are gone
     (tmp_path / ".gitignore").write_text("__pycache__/\n")
     assert run(["git", "init", "-q"], tmp_path).returncode == 0
     assert run([sys.executable, "-m", "dvc", "init", "-q"], tmp_path).returncode == 0

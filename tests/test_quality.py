@@ -271,6 +271,35 @@ def test_grown_hull_gives_the_whole_hulls_epsilon(spread, rng):
     assert any(closures) and (spread == np.pi or not all(closures))
 
 
+def test_supports_skip_only_facets_that_cannot_matter(rng):
+    """The nearest-first projection gives the smallest support of every facet, and every facet
+    below it, of a hull with thousands of facets, while projecting only a few of them."""
+    from pipeline.quality import _supports
+
+    outward = rng.normal(size=(150, 3))
+    outward /= np.linalg.norm(outward, axis=1, keepdims=True)
+    wrenches = contact_wrenches(0.03 * outward, -outward, mu=0.5, torque_scale=0.03).reshape(-1, 6)
+    hull = ConvexHull(wrenches[rng.choice(len(wrenches), 60, replace=False)])
+    distance = -hull.equations[:, -1]
+    facets, along, support = _supports(wrenches, hull.equations, distance)
+    every = (wrenches @ hull.equations[:, :-1].T).max(axis=0)
+    assert support.min() == every.min() and len(facets) < len(hull.equations) / 2  # 1280 of 3718 here
+    below = np.flatnonzero(distance < every.min())
+    assert set(below) <= set(facets) and np.array_equal(support, every[facets])
+    assert np.all(np.diff(distance[facets]) >= 0)  # nearest first
+
+
+def test_grown_hull_with_many_contacts_gives_the_whole_hulls_epsilon(rng):
+    for count in (40, 80):
+        outward = rng.normal(size=(count, 3))
+        outward /= np.linalg.norm(outward, axis=1, keepdims=True)
+        points, normals = 0.03 * outward, -outward
+        wrenches = contact_wrenches(points, normals, mu=0.5, torque_scale=0.03).reshape(-1, 6)
+        whole = -ConvexHull(wrenches).equations[:, -1].max()
+        quality = epsilon_quality(points, normals, mu=0.5, torque_scale=0.03)
+        assert quality.force_closure and quality.epsilon == pytest.approx(whole, abs=1e-12)
+
+
 def test_joggled_small_hulls_still_end(monkeypatch, rng):
     """Under Qhull's joggle (QJ, the last option) a small hull's facets can miss its own points
     by ~1e-9, so growing it may add nothing: epsilon then comes from the whole hull instead of
