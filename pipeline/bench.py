@@ -20,7 +20,7 @@ from .candidates import generate, generate_for_hands
 from .hands import HANDS
 from .mat import reconstruct
 from .medial_axis import medial_axis
-from .params import CandidatesParams, ClassifyParams, MatParams, MedialAxisParams, SampleParams, SimulateParams
+from .params import CandidatesParams, ClassifyParams, MatParams, MedialAxisParams, Params, SampleParams, SimulateParams
 from .legacy_trial import GraspWorld
 from .sampling import sample_object
 from .simulation import GraspEngine
@@ -173,21 +173,23 @@ def run_symmetry_bench(*, sphere_counts=(10000, 100000), repeats=3, out=print):
     return rows
 
 
-def trial_bench_surface():
-    """The duck of pybullet_data, 10 cm long, with each triangle split in four (16,848 triangles)."""
+def trial_bench_chain():
+    """The chain (:func:`pipeline.plan.run_chain`, default params, seed 0) on the duck of
+    pybullet_data, 10 cm long, with each triangle split in four (16,848 triangles): its
+    artefacts up to the candidates, and the triangle count."""
     import tempfile
     from pathlib import Path
 
     from .objects import load_source
+    from .plan import run_chain
 
     _, mesh = load_source("pybullet:duck.obj", scale=0.06)
     mesh = mesh.subdivide()
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "duck.ply"
         mesh.export(path)
-        return sample_object(
-            str(path), rng=np.random.default_rng(0), source_key="bench-duck", **vars(SampleParams())
-        ), len(mesh.faces)
+        artefacts, _ = run_chain(str(path), Params(), seed=0)
+    return artefacts, len(mesh.faces)
 
 
 def run_trial_bench(*, trials=100, reference_trials=30, out=print):
@@ -199,9 +201,8 @@ def run_trial_bench(*, trials=100, reference_trials=30, out=print):
     same protocol) as confusion tables; and every core through the worker pool. Returns the rows."""
     from .reference_trial import ReferenceEngine
 
-    surface, faces = trial_bench_surface()
-    axis = medial_axis(surface, **vars(MedialAxisParams()))
-    symmetry = classify(sphere_grid.build(reconstruct(surface, axis, **vars(MatParams()))), **vars(ClassifyParams()))
+    artefacts, faces = trial_bench_chain()
+    surface, symmetry = artefacts["sample"], artefacts["classify"]
     cores = default_workers(0)
     settings = SimulateParams().world_settings()
     out(f"grasp trials on the duck ({faces} triangles), {trials} random MAT candidates per hand; all cores = {cores}")
@@ -302,11 +303,8 @@ def run_recording_bench(*, trials=500, repeats=3, out=print):
         return float(np.median(times))
 
     start = time.perf_counter()
-    surface, faces = trial_bench_surface()
-    grid = sphere_grid.build(
-        reconstruct(surface, medial_axis(surface, **vars(MedialAxisParams())), **vars(MatParams()))
-    )
-    symmetry = classify(grid, **vars(ClassifyParams()))
+    artefacts, faces = trial_bench_chain()
+    surface, grid, symmetry = artefacts["sample"], artefacts["sphere_grid"], artefacts["classify"]
     geometry = time.perf_counter() - start
     bare = median_seconds(lambda: subprocess.run([sys.executable, "-c", "pass"], check=True), repeats)
     imported = median_seconds(lambda: subprocess.run([sys.executable, "-c", "import rerun"], check=True), repeats)
@@ -376,7 +374,6 @@ def run_batch_bench(*, objects=20, hands=("armar3", "barrett", "parallel_jaw"), 
     import tempfile
 
     from .batch import find_meshes, run_batch
-    from .params import Params
 
     params = Params()
     params = dataclasses.replace(params, simulate=dataclasses.replace(params.simulate, spheres_per_object=spheres))

@@ -34,28 +34,62 @@ PER_HAND = ("candidates", "trials", "contacts")
 class Stage:
     """One DAG stage: ``python -m stages.<name> INPUTS... ARGS... OUTPUTS...``, run per object and
     scale (and hand when ``per_hand``); ``args`` are matrix items (``object``, ``scale``,
-    ``hand``); ``params`` the params.yaml keys DVC tracks; ``recording`` the .rrd it writes."""
+    ``hand``); ``params`` the params.yaml keys DVC tracks; ``recording`` the .rrd it writes and
+    ``recorded`` the artefacts it reads only to draw it (after the inputs on the command line).
+
+    ``function`` (``module:name``) computes the outputs from the inputs, in order, and the
+    keywords of the params ``section`` (every key of it; empty: the caller passes the ones it
+    needs, with the hands, seed and workers); the stage module and :func:`pipeline.plan.run_chain`
+    both call it (a test checks the stage modules)."""
 
     name: str
     inputs: tuple
     outputs: tuple
     params: tuple
+    function: str = ""
+    section: str = ""
     args: tuple = ()
     per_hand: bool = False
     recording: str = ""
+    recorded: tuple = ()
 
 
 STAGES = (
-    Stage("sample", (), ("surface",), ("seed", "sample", "objects.${item.object}"), args=("object", "scale")),
-    Stage("medial_axis", ("surface",), ("medial_axis",), ("medial_axis",)),
-    Stage("mat", ("surface", "medial_axis"), ("spheres",), ("mat",)),
-    Stage("sphere_grid", ("spheres",), ("sphere_grid",), ("sphere_grid",)),
-    Stage("classify", ("sphere_grid", "surface"), ("symmetry",), ("record", "classify"), recording="object.rrd"),
+    Stage(
+        "sample",
+        (),
+        ("surface",),
+        ("seed", "sample", "objects.${item.object}"),
+        "pipeline.sampling:sample_object",
+        "sample",
+        args=("object", "scale"),
+    ),
+    Stage(
+        "medial_axis",
+        ("surface",),
+        ("medial_axis",),
+        ("medial_axis",),
+        "pipeline.medial_axis:medial_axis",
+        "medial_axis",
+    ),
+    Stage("mat", ("surface", "medial_axis"), ("spheres",), ("mat",), "pipeline.mat:reconstruct", "mat"),
+    Stage("sphere_grid", ("spheres",), ("sphere_grid",), ("sphere_grid",), "pipeline.sphere_grid:build", "sphere_grid"),
+    Stage(
+        "classify",
+        ("sphere_grid",),
+        ("symmetry",),
+        ("record", "classify"),
+        "pipeline.symmetry:classify",
+        "classify",
+        recording="object.rrd",
+        recorded=("surface",),
+    ),
     Stage(
         "candidates",
         ("symmetry",),
         ("candidates",),
         ("candidates.approach_directions", "candidates.flipped_candidates"),
+        "pipeline.candidates:generate_for_hands",
         args=("hand",),
         per_hand=True,
     ),
@@ -64,6 +98,7 @@ STAGES = (
         ("surface", "candidates"),
         ("trials", "contacts"),
         ("record", "seed", "simulate"),
+        "pipeline.trials:simulate",
         args=("hand",),
         per_hand=True,
         recording="grasps.rrd",
@@ -93,6 +128,15 @@ def stage(name):
         if entry.name == name:
             return entry
     raise PipelineError(f"no stage named {name!r} (stages: {', '.join(s.name for s in STAGES + (REPORT,))})")
+
+
+def function(entry):
+    """The callable :attr:`Stage.function` names (imported on use, so that the table itself
+    imports none of the stages' code)."""
+    import importlib
+
+    module, name = entry.function.split(":")
+    return getattr(importlib.import_module(module), name)
 
 
 def _imported(path):
@@ -161,7 +205,7 @@ def dvc_file(name):
             lines.append("      hand: ${candidates.hands}")
         logs, data = _run_folder(entry, "logs"), _run_folder(entry, "data")
         argv = (
-            [_path(item) for item in entry.inputs]
+            [_path(item) for item in entry.inputs + entry.recorded]
             + [f"${{item.{arg}}}" for arg in entry.args]
             + [_path(item) for item in entry.outputs]
             + [f"--timing {data}/timing/{name}.json", f"--log {logs}/{name}.mcap"]
@@ -172,7 +216,7 @@ def dvc_file(name):
             argv.append(f"--rrd {run_logs}/{entry.recording} --recording-id ${{item.object}}-${{item.scale}}")
             outs.append(f"{run_logs}/{entry.recording}")
         lines += ["    wdir: ../..", "    cmd: >-", f"      python -m stages.{name}"] + [f"      {arg}" for arg in argv]
-        deps = list(code_deps(name)) + [_path(item) for item in entry.inputs]
+        deps = list(code_deps(name)) + [_path(item) for item in entry.inputs + entry.recorded]
     lines += ["    deps:"] + [f"      - {path}" for path in deps]
     lines += ["    params:"] + [f"      - {key}" for key in entry.params]
     lines += ["    outs:"] + [f"      - {path}" for path in outs]

@@ -6,28 +6,23 @@ from pathlib import Path
 
 import numpy as np
 
-from . import sphere_grid
 from .artefacts import atomic_write, json_bytes, write_table
-from .candidates import generate_for_hands
 from .dag import ARTEFACTS, STAGES
+from .dag import function as stage_function
 from .hands import get_hand
-from .mat import reconstruct
-from .medial_axis import medial_axis
 from .objects import RepairWarning, source_key
 from .params import Params
-from .sampling import sample_object
-from .symmetry import CLASSES, INTERIOR, classify
+from .symmetry import CLASSES, INTERIOR
 from .trials import default_workers
-from .trials import simulate as run_simulation
 from .trials import summary as trial_summary
 
 #: file of each artefact a chain run makes, by its key in :func:`run_chain`'s result: the stage
-#: that makes it (``trials`` and ``contacts`` by their own names), named as in the DVC stages
-ARTEFACT_NAMES = {
-    (stage.name if len(stage.outputs) == 1 else output): ARTEFACTS[output]
-    for stage in STAGES
-    for output in stage.outputs
+#: that makes it (``trials`` and ``contacts`` by their own names), and its table name; files named
+#: as in the DVC stages
+ARTEFACT_KEYS = {
+    (stage.name if len(stage.outputs) == 1 else output): output for stage in STAGES for output in stage.outputs
 }
+ARTEFACT_NAMES = {key: ARTEFACTS[output] for key, output in ARTEFACT_KEYS.items()}
 
 
 def run_chain(
@@ -70,56 +65,44 @@ def run_chain(
     """
     seed = params.seed if seed is None else seed
     hand_specs = [get_hand(name) for name in (hands or params.candidates.hands)]  # fail before any work
-    artefacts, timings = {}, {}
-
-    def timed(stage, compute):
-        start = time.perf_counter()
-        artefacts[stage] = compute()
-        timings[stage] = time.perf_counter() - start
-        if progress:
-            progress(f"{stage}: {timings[stage]:.2f} s")
-
-    timed(
-        "sample",
-        lambda: sample_object(
-            source,
+    # the keywords each stage's function takes beyond its inputs and its whole params section
+    extra = {
+        "sample": dict(
+            source=source,
             scale=scale,
             shape=shape,
             rng=np.random.default_rng(seed),
             source_key=source_key(source, shape),
-            **dataclasses.asdict(params.sample),
         ),
-    )
-    timed("medial_axis", lambda: medial_axis(artefacts["sample"], **dataclasses.asdict(params.medial_axis)))
-    timed("mat", lambda: reconstruct(artefacts["sample"], artefacts["medial_axis"], **dataclasses.asdict(params.mat)))
-    timed("sphere_grid", lambda: sphere_grid.build(artefacts["mat"], **dataclasses.asdict(params.sphere_grid)))
-    timed("classify", lambda: classify(artefacts["sphere_grid"], **dataclasses.asdict(params.classify)))
-    timed(
-        "candidates",
-        lambda: generate_for_hands(
-            artefacts["classify"],
-            hand_specs,
+        "candidates": dict(
+            hands=hand_specs,
             approach_directions=params.candidates.approach_directions,
             flipped_candidates=params.candidates.flipped_candidates,
         ),
-    )
-    if simulate:
-        config = params.simulate
-        timed(
-            "simulate",
-            lambda: run_simulation(
-                artefacts["sample"],
-                artefacts["candidates"],
-                hand_specs,
-                spheres_per_object=config.spheres_per_object,
-                baseline_trials=config.baseline_trials,
-                seed=seed,
-                workers=default_workers(config.workers if workers is None else workers),
-                settings=config.world_settings(),
-                progress=trial_progress,
-            ),
-        )
-        artefacts["trials"], artefacts["contacts"] = artefacts.pop("simulate")
+        "simulate": dict(
+            hands=hand_specs,
+            spheres_per_object=params.simulate.spheres_per_object,
+            baseline_trials=params.simulate.baseline_trials,
+            seed=seed,
+            workers=default_workers(params.simulate.workers if workers is None else workers),
+            settings=params.simulate.world_settings(),
+            progress=trial_progress,
+        ),
+    }
+    made, artefacts, timings = {}, {}, {}
+    for entry in STAGES:
+        if entry.name == "simulate" and not simulate:
+            break
+        keywords = dataclasses.asdict(getattr(params, entry.section)) if entry.section else {}
+        start = time.perf_counter()
+        result = stage_function(entry)(*(made[name] for name in entry.inputs), **keywords, **extra.get(entry.name, {}))
+        timings[entry.name] = time.perf_counter() - start
+        made.update(zip(entry.outputs, result if len(entry.outputs) > 1 else (result,)))
+        if progress:
+            progress(f"{entry.name}: {timings[entry.name]:.2f} s")
+    for key, name in ARTEFACT_KEYS.items():
+        if name in made:
+            artefacts[key] = made[name]
     return artefacts, timings
 
 

@@ -5,6 +5,7 @@ import pytest
 
 from pipeline import dag
 from pipeline.errors import PipelineError
+from pipeline.params import SECTIONS
 
 
 def test_committed_dvc_files_are_written_from_the_table():
@@ -73,3 +74,33 @@ def test_table_chains_every_input_to_an_earlier_output():
         assert set(entry.inputs) <= made, entry.name
         made |= set(entry.outputs)
     assert made == set(dag.ARTEFACTS)
+
+
+def test_each_stage_module_calls_the_tables_function():
+    import ast
+
+    for entry in dag.STAGES:
+        module, name = entry.function.split(":")
+        tree = ast.parse((dag.ROOT / "stages" / f"{entry.name}.py").read_text())
+        imported = {
+            (node.module, alias.name)
+            for node in ast.walk(tree)
+            if isinstance(node, ast.ImportFrom)
+            for alias in node.names
+        }
+        called = {
+            node.func.id for node in ast.walk(tree) if isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+        }
+        called_on = {
+            (node.func.value.id, node.func.attr)
+            for node in ast.walk(tree)
+            if isinstance(node, ast.Call)
+            and isinstance(node.func, ast.Attribute)
+            and isinstance(node.func.value, ast.Name)
+        }
+        parent, leaf = module.rsplit(".", 1)
+        direct = (module, name) in imported and name in called
+        via_module = (parent, leaf) in imported and (leaf, name) in called_on
+        assert direct or via_module, entry.name
+        assert callable(dag.function(entry))
+        assert not entry.section or entry.section in SECTIONS
