@@ -6,7 +6,7 @@ import json
 import sys
 from pathlib import Path
 
-from .cli import PARAMS_FILE, one_line_errors, progress_bar
+from .stage_io import PARAMS_FILE, one_line_errors, progress_bar
 from .params import Params, load_params
 
 PARAMS_HELP = f"params file (default: {PARAMS_FILE} in the current folder if present, else built-in defaults)"

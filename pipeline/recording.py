@@ -272,7 +272,7 @@ def send_blueprint(stream, root):
 
 
 def record_stage(run, draw):
-    """Write a DVC stage's recording (:class:`pipeline.cli.StageRun` ``run``): ``draw(stream,
+    """Write a DVC stage's recording (:class:`pipeline.stage_io.StageRun` ``run``): ``draw(stream,
     root)`` logs the entities under ``root``. With params ``record`` off the .rrd is written
     empty, so that DVC still finds the declared output."""
     if not run.rrd:

@@ -10,7 +10,7 @@ import dataclasses
 import numpy as np
 
 from pipeline.artefacts import SphereGrid, SurfaceSamples
-from pipeline.cli import one_line_errors, params, stage_args, stage_run
+from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
 from pipeline.recording import log_spheres, log_surface, log_symmetry, record_stage
 from pipeline.symmetry import CLASSES, classify
 

@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 
 from pipeline.artefacts import MedialAxis, SurfaceSamples
-from pipeline.cli import one_line_errors, params, stage_args, stage_run
+from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
 from pipeline.mat import reconstruct
 
 

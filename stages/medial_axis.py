@@ -3,7 +3,7 @@
 import dataclasses
 
 from pipeline.artefacts import SurfaceSamples
-from pipeline.cli import one_line_errors, params, stage_args, stage_run
+from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
 from pipeline.medial_axis import medial_axis
 
 

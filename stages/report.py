@@ -10,7 +10,7 @@ import io
 import json
 from pathlib import Path
 
-from pipeline.cli import one_line_errors, params, stage_args, stage_run
+from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
 
 
 def run_dir(data, name, scale, hand=None):

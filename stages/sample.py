@@ -7,7 +7,7 @@ import dataclasses
 
 import numpy as np
 
-from pipeline.cli import one_line_errors, params, stage_args, stage_run
+from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
 from pipeline.errors import BadParamsError
 from pipeline.objects import parse_spec, source_key
 from pipeline.sampling import sample_object

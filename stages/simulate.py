@@ -7,7 +7,7 @@ The recording shows every candidate (approach arrows, P_o) and each trial on its
 
 import dataclasses
 
-from pipeline.cli import one_line_errors, params, progress_bar, stage_args, stage_run
+from pipeline.stage_io import one_line_errors, params, progress_bar, stage_args, stage_run
 
 
 @one_line_errors

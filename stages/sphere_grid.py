@@ -4,7 +4,7 @@ import dataclasses
 
 from pipeline import sphere_grid
 from pipeline.artefacts import MedialSpheres
-from pipeline.cli import one_line_errors, params, stage_args, stage_run
+from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
 
 
 @one_line_errors

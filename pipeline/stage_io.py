@@ -1,4 +1,5 @@
-"""Shared plumbing of the command line and the DVC stages: params, errors, exit codes."""
+"""The DVC stages' plumbing, shared with the command line: params, stage arguments, one-line
+errors and exit codes, the stage run (atomic timing, MCAP log) and progress bars."""
 
 import argparse
 import contextlib
