@@ -8,14 +8,13 @@ import dataclasses
 import json
 import re
 import warnings
-from pathlib import Path
 
 import numpy as np
 import yaml
 
-from .errors import BadInputError, BadParamsError, PipelineError
+from .errors import BadInputError, PipelineError
 from .objects import RepairWarning, check_size, load_source, mesh_files, object_name, select_meshes
-from .params import Params, ReportParams, SampleParams, section_from_mapping
+from .params import Params, ReportParams, SampleParams, parse_scales, read_mapping, section_from_mapping
 from .sampling import sample_object
 
 
@@ -102,23 +101,9 @@ def _sample_checks(path):
     objects (figure_objects of an earlier listing) can still be rewritten."""
     if path is None:
         return Params().sample, list(Params().scales)
-    try:
-        raw = yaml.safe_load(Path(path).read_text()) or {}
-    except FileNotFoundError:
-        raise BadParamsError(f"{path}: file not found") from None
-    except yaml.YAMLError as err:
-        raise BadParamsError(f"{path}: not valid YAML ({str(err).replace(chr(10), ' ')})") from None
-    if not isinstance(raw, dict):
-        raise BadParamsError(f"{path}: must be a mapping of sections")
+    raw = read_mapping(path)
     sample = section_from_mapping(SampleParams, raw.get("sample"), section="sample", source=str(path))
-    scales = raw.get("scales", [1.0])
-    if not (
-        isinstance(scales, list)
-        and scales
-        and all(isinstance(scale, (int, float)) and not isinstance(scale, bool) and scale > 0 for scale in scales)
-    ):
-        raise BadParamsError(f"{path}: scales must be a list of positive numbers, got {scales!r}")
-    return sample, [float(scale) for scale in scales]
+    return sample, [float(scale) for scale in parse_scales(raw.get("scales", [1.0]), source=path)]
 
 
 def _checked_scale(path, scale, size, sample, scales, warn):

@@ -356,6 +356,36 @@ def defaults():
     }
 
 
+def read_mapping(path):
+    """The params file at ``path`` as a dict of sections, unvalidated (one-line errors for a
+    missing file, bad YAML or a file that is not a mapping)."""
+    try:
+        raw = yaml.safe_load(Path(path).read_text())
+    except FileNotFoundError:
+        raise BadParamsError(f"{path}: file not found") from None
+    except yaml.YAMLError as err:
+        problem = str(err).replace("\n", " ")
+        raise BadParamsError(f"{path}: not valid YAML ({problem})") from None
+    if not isinstance(raw, dict):
+        raise BadParamsError(f"{path}: must be a mapping of sections")
+    return raw
+
+
+def parse_scales(scales, *, source):
+    """``scales`` of a params file as a tuple of floats: a list of distinct positive numbers."""
+    if not (
+        isinstance(scales, list)
+        and scales
+        and all(
+            isinstance(scale, (int, float)) and not isinstance(scale, bool) and math.isfinite(scale) and scale > 0
+            for scale in scales
+        )
+        and len(set(scales)) == len(scales)
+    ):
+        raise BadParamsError(f"{source}: scales must be a list of distinct positive numbers, got {scales!r}")
+    return tuple(scales)
+
+
 def load_params(path="params.yaml"):
     """Read and validate the whole params file.
 
@@ -364,15 +394,7 @@ def load_params(path="params.yaml"):
     Params
     """
     path = Path(path)
-    try:
-        raw = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise BadParamsError(f"{path}: file not found") from None
-    except yaml.YAMLError as err:
-        problem = str(err).replace("\n", " ")
-        raise BadParamsError(f"{path}: not valid YAML ({problem})") from None
-    if not isinstance(raw, dict):
-        raise BadParamsError(f"{path}: must be a mapping of sections")
+    raw = read_mapping(path)
     unknown = sorted(set(raw) - {f.name for f in dataclasses.fields(Params)})
     if unknown:
         raise BadParamsError(f"{path}: unknown section {unknown[0]!r}")
@@ -387,17 +409,7 @@ def load_params(path="params.yaml"):
     objects = raw["objects"] or {}
     if not isinstance(objects, dict):
         raise BadParamsError(f"{path}: objects must be a mapping name -> spec")
-    scales = raw["scales"]
-    if not (
-        isinstance(scales, list)
-        and scales
-        and all(
-            isinstance(scale, (int, float)) and not isinstance(scale, bool) and math.isfinite(scale) and scale > 0
-            for scale in scales
-        )
-        and len(set(scales)) == len(scales)
-    ):
-        raise BadParamsError(f"{path}: scales must be a list of distinct positive numbers, got {scales!r}")
+    scales = parse_scales(raw["scales"], source=path)
     record = raw["record"]
     if type(record) is not bool:
         raise BadParamsError(f"{path}: record must be true or false, got {record!r}")
@@ -407,7 +419,7 @@ def load_params(path="params.yaml"):
     strangers = [name for name in sections["report"].figure_objects if objects and name not in objects]
     if strangers:
         raise BadParamsError(f"{path}: report.figure_objects names {strangers[0]!r}, which is not under objects")
-    return Params(seed=seed, objects=objects, scales=tuple(scales), record=record, **sections)
+    return Params(seed=seed, objects=objects, scales=scales, record=record, **sections)
 
 
 if __name__ == "__main__":
