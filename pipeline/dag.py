@@ -212,9 +212,8 @@ def dvc_file(name):
         )
         outs = [_path(item) for item in entry.outputs] + [f"{data}/timing/{name}.json", f"{logs}/{name}.mcap"]
         if entry.recording:
-            run_logs = "logs/${item.object}/${item.scale}" + ("/${item.hand}" if entry.per_hand else "")
-            argv.append(f"--rrd {run_logs}/{entry.recording} --recording-id ${{item.object}}-${{item.scale}}")
-            outs.append(f"{run_logs}/{entry.recording}")
+            argv.append(f"--rrd {logs}/{entry.recording} --recording-id ${{item.object}}-${{item.scale}}")
+            outs.append(f"{logs}/{entry.recording}")
         lines += ["    wdir: ../..", "    cmd: >-", f"      python -m stages.{name}"] + [f"      {arg}" for arg in argv]
         deps = list(code_deps(name)) + [_path(item) for item in entry.inputs + entry.recorded]
     lines += ["    deps:"] + [f"      - {path}" for path in deps]
