@@ -12,6 +12,7 @@ from .dag import function as stage_function
 from .hands import get_hand
 from .objects import RepairWarning, source_key
 from .params import Params
+from .stage_io import warning_line
 from .symmetry import CLASSES, INTERIOR
 from .trials import default_workers
 from .trials import summary as trial_summary
@@ -170,8 +171,7 @@ def warning_lines(caught):
     return [
         str(caught_warning.message)
         if issubclass(caught_warning.category, RepairWarning)
-        else f"{caught_warning.category.__name__}: {caught_warning.message} "
-        f"({Path(caught_warning.filename).name}:{caught_warning.lineno})"
+        else warning_line(caught_warning)
         for caught_warning in caught
     ]
 

@@ -106,7 +106,7 @@ def stage_run(args, stage, *, params=None, inputs=(), outputs=(), record=True):
             warnings.simplefilter("default")
             yield run
         for warning in caught:
-            run.warn(f"{warning.category.__name__}: {warning.message} ({Path(warning.filename).name}:{warning.lineno})")
+            run.warn(warning_line(warning))
         seconds = time.perf_counter() - start
         timing = {
             "stage": stage,
@@ -123,6 +123,15 @@ def stage_run(args, stage, *, params=None, inputs=(), outputs=(), record=True):
             log.log("/modules", {"modules": sorted(name for name in sys.modules if name.split(".")[0] == "pipeline")})
         if args.timing:
             atomic_write(args.timing, lambda stream: stream.write(json_bytes(timing)))
+
+
+def warning_line(caught_warning):
+    """One line for a warning caught with ``warnings.catch_warnings(record=True)``: its category,
+    message and origin (file name and line)."""
+    return (
+        f"{caught_warning.category.__name__}: {caught_warning.message} "
+        f"({Path(caught_warning.filename).name}:{caught_warning.lineno})"
+    )
 
 
 def _process_age():
