@@ -24,8 +24,8 @@ objects' meshes).
 """
 
 import numpy as np
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import ConvexHull, QhullError
+from numba import njit, types
+from numba.typed import Dict
 
 from .tol import tol
 
@@ -49,27 +49,127 @@ def region_corners(points, normals, *, coplanar_deg=5.0, merge_m=None, max_corne
     -------
     (k,) int, sorted: the hull corners of every region.
     """
+    points, normals = np.asarray(points, np.float64), np.asarray(normals, np.float64)
     if len(points) <= 2:
         return np.arange(len(points))
     merge_m = tol.contact_merge_m if merge_m is None else merge_m
-    # each candidate once: several measures can find the same touching point
-    rows = np.sort(np.unique(np.round(np.c_[points, normals], tol.point_decimals), axis=0, return_index=True)[1])
-    points, normals = points[rows], normals[rows]
+    # candidates are compared after rounding: several measures can find the same touching point
+    rounded = np.round(np.c_[points, normals], tol.point_decimals)
+    corners = _corners(points, normals, rounded, np.cos(np.radians(coplanar_deg)), merge_m)
+    return np.sort(_farthest(points, corners, max_corners))
+
+
+_ROW, _NORMAL = types.UniTuple(types.float64, 6), types.UniTuple(types.float64, 3)
+
+
+@njit(cache=True)
+def _corners(points, normals, rounded, agree_cos, merge_m):
+    """Sorted indices of the hull corners of every region (see :func:`region_corners`): each
+    rounded candidate once (its first occurrence); regions connected by agreeing (rounded)
+    normals; per region :func:`_hull_2d`."""
+    count = len(points)
+    seen = Dict.empty(key_type=_ROW, value_type=types.int64)
+    rows = np.empty(count, np.int64)
+    kept = 0
+    for row in range(count):
+        key = (rounded[row, 0], rounded[row, 1], rounded[row, 2], rounded[row, 3], rounded[row, 4], rounded[row, 5])
+        if key not in seen:
+            seen[key] = row
+            rows[kept] = row
+            kept += 1
+    rows = rows[:kept]
     # regions are found among the distinct normals: a link lying on one facet touches it at
     # many points, but the facets and link faces involved are few
-    distinct, inverse = np.unique(np.round(normals, tol.point_decimals), axis=0, return_inverse=True)
-    agree = distinct @ distinct.T >= np.cos(np.radians(coplanar_deg))
-    region = (
-        np.zeros(len(points), np.int64)
-        if agree.all()
-        else connected_components(agree, directed=False)[1][inverse.reshape(-1)]
-    )
-    keep = []
+    distinct = Dict.empty(key_type=_NORMAL, value_type=types.int64)
+    which = np.empty(kept, np.int64)
+    first_row = np.empty(kept, np.int64)
+    for position in range(kept):
+        row = rows[position]
+        key = (rounded[row, 3], rounded[row, 4], rounded[row, 5])
+        if key not in distinct:
+            first_row[len(distinct)] = row
+            distinct[key] = len(distinct)
+        which[position] = distinct[key]
+    labels = np.arange(len(distinct))
+    for one in range(len(distinct)):
+        for other in range(one + 1, len(distinct)):
+            a, b = rounded[first_row[one], 3:], rounded[first_row[other], 3:]
+            if a[0] * b[0] + a[1] * b[1] + a[2] * b[2] >= agree_cos:
+                root_one, root_other = _root(labels, one), _root(labels, other)
+                labels[max(root_one, root_other)] = min(root_one, root_other)
+    region = np.empty(kept, np.int64)
+    for position in range(kept):
+        region[position] = _root(labels, which[position])
+    corner = np.zeros(count, np.bool_)
     for label in np.unique(region):
-        members = np.flatnonzero(region == label)
-        corners = members[_hull_2d(points[members], normals[members].mean(axis=0), merge_m)]
-        keep += list(corners)
-    return np.sort(rows[_farthest(points, np.array(keep, dtype=np.int64), max_corners)])
+        members = rows[region == label]
+        for index in _hull_2d(points[members], normals[members], merge_m):
+            corner[members[index]] = True
+    return np.flatnonzero(corner)
+
+
+@njit(cache=True)
+def _root(labels, node):
+    while labels[node] != node:
+        node = labels[node]
+    return node
+
+
+@njit(cache=True)
+def _hull_2d(points, normals, merge_m):
+    """Corners (indices) of the 2D convex hull of (k, 3) points across their mean normal: the
+    two ends when they are (nearly) on a line, the first when they are (nearly) one point."""
+    count = len(points)
+    if count == 1:
+        return np.zeros(1, np.int64)
+    normal = normals.sum(axis=0)
+    normal /= np.linalg.norm(normal)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    first = np.cross(normal, helper)
+    first /= np.linalg.norm(first)
+    second = np.cross(normal, first)
+    offset = points - points[0]
+    plane = np.empty((count, 2))
+    plane[:, 0], plane[:, 1] = offset @ first, offset @ second
+    centred = plane - plane.sum(axis=0) / count
+    # the spreads (singular values) and main axis of the centred points, from their 2 x 2 scatter
+    xx, xy, yy = (centred[:, 0] ** 2).sum(), (centred[:, 0] * centred[:, 1]).sum(), (centred[:, 1] ** 2).sum()
+    largest = (xx + yy) / 2 + np.sqrt(((xx - yy) / 2) ** 2 + xy**2)
+    smallest = max(xx * yy - xy**2, 0.0) / largest if largest > 0 else 0.0
+    if np.sqrt(largest) <= merge_m:
+        return np.zeros(1, np.int64)
+    if np.sqrt(smallest) > merge_m * np.sqrt(count):
+        return _monotone_chain(plane)
+    axis = np.array([largest - yy, xy]) if xx >= yy else np.array([xy, largest - xx])
+    along = centred @ (axis / np.linalg.norm(axis))
+    return np.unique(np.array([along.argmin(), along.argmax()]))
+
+
+@njit(cache=True)
+def _monotone_chain(plane):
+    """Sorted indices of the corners of the convex hull of (k, 2) points (Andrew's monotone
+    chain); a point on an edge, to rounding, is not a corner (as with Qhull)."""
+    order = np.argsort(plane[:, 1], kind="mergesort")
+    order = order[np.argsort(plane[order, 0], kind="mergesort")]
+    extent = max(plane[:, 0].max() - plane[:, 0].min(), plane[:, 1].max() - plane[:, 1].min())
+    slack = 1e-12 * extent * extent  # a cross product this small is a straight turn
+    chain = np.empty(2 * len(order) + 1, np.int64)
+    size = 0
+    for sweep in range(2):  # the lower hull left to right, then the upper one back
+        start = size
+        for step in range(len(order)):
+            index = order[step] if sweep == 0 else order[len(order) - 1 - step]
+            while size >= start + 2:
+                a, b = plane[chain[size - 2]], plane[chain[size - 1]]
+                turn = (b[0] - a[0]) * (plane[index, 1] - a[1]) - (b[1] - a[1]) * (plane[index, 0] - a[0])
+                if turn > slack:
+                    break
+                size -= 1
+            chain[size] = index
+            size += 1
+        size -= 1  # each half ends where the other starts
+        start = size
+    return np.unique(chain[:size])
 
 
 def _farthest(points, indices, count):
@@ -96,26 +196,3 @@ def _farthest(points, indices, count):
         kept.append(pick(gap))
         gap = np.minimum(gap, np.linalg.norm(chosen - chosen[kept[-1]], axis=1))
     return indices[kept]
-
-
-def _hull_2d(points, normal, merge_m):
-    """Corners of the 2D convex hull of points across ``normal``: two ends when they are on a
-    line, one when they are (nearly) one point."""
-    if len(points) == 1:
-        return np.array([0])
-    normal = normal / np.linalg.norm(normal)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    first = np.cross(normal, helper)
-    first /= np.linalg.norm(first)
-    plane = np.column_stack([(points - points[0]) @ first, (points - points[0]) @ np.cross(normal, first)])
-    centred = plane - plane.mean(axis=0)
-    _, spread, axes = np.linalg.svd(centred, full_matrices=False)
-    if spread[0] <= merge_m:
-        return np.array([0])
-    if spread[1] > merge_m * np.sqrt(len(points)):
-        try:
-            return np.sort(ConvexHull(plane).vertices)
-        except QhullError:
-            pass
-    along = centred @ axes[0]
-    return np.unique([along.argmin(), along.argmax()])

@@ -70,3 +70,19 @@ def test_a_cap_never_keeps_a_corner_twice():
     normals = np.array([(0, 0, 1), (0, 0, 1), (0, 1, 0), (0, 1, 0), (0, 0.6, 0.8)], float)
     kept = region_corners(points, normals, max_corners=4)
     assert len(set(kept.tolist())) == 4
+
+
+def test_a_scattered_face_contact_is_its_convex_hull(rng):
+    """Touching points scattered on a tilted face: the corners are exactly the vertices of their
+    2D convex hull (Qhull's, computed independently in the face's own coordinates)."""
+    from scipy.spatial import ConvexHull
+
+    normal = np.array([0.3, -0.2, 0.9]) / np.linalg.norm([0.3, -0.2, 0.9])
+    first = np.cross(normal, [1.0, 0.0, 0.0])
+    first /= np.linalg.norm(first)
+    second = np.cross(normal, first)
+    for _ in range(5):
+        flat = rng.uniform(-0.01, 0.01, (40, 2))
+        points = 0.05 * normal + flat[:, :1] * first + flat[:, 1:] * second
+        corners = region_corners(points, np.tile(normal, (len(points), 1)))
+        assert corners.tolist() == sorted(ConvexHull(flat).vertices.tolist())
