@@ -23,6 +23,7 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.spatial import ConvexHull
 
 from .errors import BadParamsError
@@ -125,8 +126,23 @@ def link_poses(model, base, q):
 def transform(poses, owner, local):
     """World positions (m, 3) of link-frame points ``local`` (m, 3), point i carried by the pose
     ``poses[owner[i]]`` ((n, 4, 4) poses, flat index ``owner``)."""
-    chosen = poses[owner]
-    return np.einsum("mij,mj->mi", chosen[:, :3, :3], local) + chosen[:, :3, 3]
+    return _transform(
+        np.ascontiguousarray(poses, np.float64),
+        np.ascontiguousarray(owner, np.int64),
+        np.ascontiguousarray(local, np.float64).reshape(-1, 3),
+    )
+
+
+@njit(cache=True)
+def _transform(poses, owner, local):
+    world = np.empty((len(owner), 3))
+    for point in range(len(owner)):
+        pose = poses[owner[point]]
+        for row in range(3):
+            world[point, row] = (
+                pose[row, 0] * local[point, 0] + pose[row, 1] * local[point, 1] + pose[row, 2] * local[point, 2]
+            ) + pose[row, 3]
+    return world
 
 
 def _edge_points(vertices, edges, spacing):

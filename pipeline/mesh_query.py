@@ -15,9 +15,9 @@ threshold needs no exact query.
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from .tol import tol
-from scipy.spatial import cKDTree
 
 
 def _edge_points(vertices, faces, face_normals, spacing):
@@ -40,6 +40,46 @@ def _edge_points(vertices, faces, face_normals, spacing):
     points = start[owner] + fraction[:, None] * (end - start)[owner]
     normals = face_normals[pairs[bent][owner, 0]] + face_normals[pairs[bent][owner, 1]]
     return points, normals / np.linalg.norm(normals, axis=1, keepdims=True)
+
+
+FEATURE_CELL_M = 0.006  # the feature bins' side: a link cover's ball (about 1 cm) spans a few
+
+
+def _cells(points, size):
+    """(origin (3,), size, shape (3,), starts (c + 1,), indices (n,)): the (n, 3) ``points``
+    binned in cubic cells of ``size`` m, as compressed rows (cell ``(i * shape[1] + j) *
+    shape[2] + k`` holds ``indices[starts[c]:starts[c + 1]]``, in increasing order)."""
+    origin = points.min(axis=0) if len(points) else np.zeros(3)
+    upper = points.max(axis=0) if len(points) else np.zeros(3)
+    shape = np.floor((upper - origin) / size).astype(np.int64) + 1
+    index = np.floor((points - origin) / size).astype(np.int64)
+    cell = (index[:, 0] * shape[1] + index[:, 1]) * shape[2] + index[:, 2]
+    order = np.argsort(cell, kind="stable")
+    starts = np.searchsorted(cell[order], np.arange(int(np.prod(shape)) + 1))
+    return origin, float(size), shape, starts.astype(np.int64), order.astype(np.int64)
+
+
+@njit(cache=True)
+def _grid_bounds(points, grid, origin, voxel, slack):
+    """(n,) lower and upper bounds on the signed distance of (n, 3) points from the ``grid``'s
+    nearest node (see :meth:`ObjectMesh.bounds`)."""
+    low, high = np.empty(len(points)), np.empty(len(points))
+    last = np.array(grid.shape) - 1
+    for point in range(len(points)):
+        squared = 0.0
+        i, j, k = 0, 0, 0
+        for axis in range(3):
+            cell = min(max(np.int64(np.rint((points[point, axis] - origin[axis]) / voxel)), 0), last[axis])
+            squared += (points[point, axis] - (origin[axis] + cell * voxel)) ** 2
+            if axis == 0:
+                i = cell
+            elif axis == 1:
+                j = cell
+            else:
+                k = cell
+        reach = np.sqrt(squared) + slack
+        low[point], high[point] = grid[i, j, k] - reach, grid[i, j, k] + reach
+    return low, high
 
 
 @dataclass(frozen=True)
@@ -90,7 +130,9 @@ class ObjectMesh:
         along, along_normals = _edge_points(self.vertices, self.faces, self.face_normals, edge_spacing)
         self.features = np.concatenate([self.vertices, along])
         self.feature_normals = np.concatenate([vertex_normals, along_normals])
-        self.feature_tree = cKDTree(self.features)
+        #: the features binned in cubic cells (origin, cell size, shape, CSR starts, feature
+        #: indices), for the link pieces' ball queries (:func:`pipeline.proximity._feature_hits`)
+        self.feature_cells = _cells(self.features, FEATURE_CELL_M)
         low, high = self.vertices.min(axis=0), self.vertices.max(axis=0)
         self.box = np.array([low, high])
         self.voxel = float((high - low).max() / grid_cells)
@@ -143,12 +185,8 @@ class ObjectMesh:
     def bounds(self, points):
         """(n,) lower and (n,) upper bounds (m) on the signed distance of (n, 3) points, from the
         grid's nearest node (valid anywhere: far outside the grid they are loose, not wrong)."""
-        points = np.asarray(points, np.float64).reshape(-1, 3)
-        cell = np.clip(np.rint((points - self.origin) / self.voxel).astype(np.int64), 0, np.array(self.grid.shape) - 1)
-        node = self.grid[cell[:, 0], cell[:, 1], cell[:, 2]]
-        slack = np.linalg.norm(points - (self.origin + cell * self.voxel), axis=1)
-        slack += tol.grid_slack * self.voxel
-        return node - slack, node + slack
+        points = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
+        return _grid_bounds(points, self.grid, self.origin, self.voxel, tol.grid_slack * self.voxel)
 
     def clearance(self, points):
         """(n,) lower bound (m) on the unsigned distance of (n, 3) points to the mesh: the grid's,

@@ -16,10 +16,10 @@ inside or outside), so a distance at or below ``near`` is always the exact measu
 one above it a lower bound that keeps steps conservative.
 """
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from .arrays import expand_ranges
 from .kinematics import transform
@@ -109,7 +109,7 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
 def _vertex_side(mesh, model, flat, slot, close, near, bounds=None):
     """Mesh features within ``near`` of the convex pieces of the pairs ``close``: their pair (k,),
     feature (k,), distance to the piece (k,) m (the largest plane distance, negative, inside) and the contact
-    normal (k, 3) pointing out of the link (:func:`_piece_distance`). ``bounds``, a list, receives (pairs, m) of
+    normal (k, 3) pointing out of the link (:func:`_piece_gap`). ``bounds``, a list, receives (pairs, m) of
     the cover spheres too far for any vertex to be within ``near``: their lower bounds, which
     keep the link's distance a bound when its nearest part is a face away from its edges."""
     count = len(model.links)
@@ -130,76 +130,162 @@ def _vertex_side(mesh, model, flat, slot, close, near, bounds=None):
     if not needed.any():
         return empty
     pair, cover = pair[needed], cover[needed]
-    found = mesh.feature_tree.query_ball_point(centres[needed], reach[needed], return_sorted=False)
-    sizes = np.fromiter(map(len, found), np.int64, len(found))
-    if not sizes.sum():
-        return empty
-    vertex = np.fromiter(itertools.chain.from_iterable(found), np.int64, sizes.sum())
-    which = np.repeat(np.arange(len(cover)), sizes)
-    piece = model.cover_piece[cover][which]
-    # a feature reached by several of a piece's overlapping covers is measured once, in the
-    # order found
-    key = (pair[which] * len(model.planes) + piece) * len(mesh.features) + vertex
-    first = np.sort(np.unique(key, return_index=True)[1])
-    which, piece, vertex = which[first], piece[first], vertex[first]
-    chosen = flat[slot[pair[which]]]
-    local = np.einsum("mji,mj->mi", chosen[:, :3, :3], mesh.features[vertex] - chosen[:, :3, 3])
-    facing = np.einsum("mji,mj->mi", chosen[:, :3, :3], -mesh.feature_normals[vertex])
-    gap, face_normal = _piece_distance(model, piece, local, facing, near)
-    # only features within ``near`` matter: the covers bound the farther ones
-    within = np.flatnonzero(gap <= near)
-    normal = np.einsum("mij,mj->mi", chosen[within, :3, :3], face_normal[within])
-    return pair[which[within]], vertex[within], gap[within], normal
+    rows, vertex, gap, face_normal = _feature_hits(
+        flat,
+        slot[pair],
+        centres[needed],
+        reach[needed],
+        model.cover_piece[cover],
+        mesh.features,
+        mesh.feature_normals,
+        mesh.feature_cells,
+        model.planes,
+        model.piece_edges,
+        model.edge_planes,
+        near,
+        tol.edge_tie_m,
+    )
+    normal = np.einsum("mij,mj->mi", flat[slot[pair[rows]], :3, :3], face_normal)
+    return pair[rows], vertex, gap, normal
 
 
-def _piece_distance(model, piece, local, facing, near):
-    """Signed distance (m,) of link-frame points ``local`` (m, 3) to their convex ``piece`` (m,),
-    and the contact normal (m, 3, link frame) pointing out of the piece; beyond ``near`` only a
-    lower bound (the largest plane distance) and no normal.
+@njit(cache=True)
+def _feature_hits(
+    poses, slots, centres, reach, pieces, features, feature_normals, cells, planes, edges, sides, near, tie
+):
+    """The features within ``near`` of the cover spheres' pieces (``centres`` (c, 3) world,
+    ``reach`` (c,) m, ``pieces`` (c,), carried by the link poses ``poses[slots]``): per hit the
+    cover's row, the feature, the piece distance and the normal (link frame) of
+    :func:`_piece_gap`. A feature in several covers of one piece in a row counts once."""
+    origin, size, shape, starts, items = cells
+    capacity = 1024
+    rows, found, gaps, normals = (
+        np.empty(capacity, np.int64),
+        np.empty(capacity, np.int64),
+        np.empty(capacity),
+        np.empty((capacity, 3)),
+    )
+    seen = np.full(len(features), -1, np.int64)
+    hits, group, previous = 0, -1, (-1, -1)
+    local, facing = np.empty(3), np.empty(3)
+    low, high = np.empty(3, np.int64), np.empty(3, np.int64)
+    for row in range(len(centres)):
+        piece = pieces[row]
+        if (slots[row], piece) != previous:
+            group, previous = group + 1, (slots[row], piece)
+        pose = poses[slots[row]]
+        for axis in range(3):
+            low[axis] = max(int(np.floor((centres[row, axis] - reach[row] - origin[axis]) / size)), 0)
+            high[axis] = min(int(np.floor((centres[row, axis] + reach[row] - origin[axis]) / size)), shape[axis] - 1)
+        for i in range(low[0], high[0] + 1):
+            for j in range(low[1], high[1] + 1):
+                for k in range(low[2], high[2] + 1):
+                    cell = (i * shape[1] + j) * shape[2] + k
+                    for position in range(starts[cell], starts[cell + 1]):
+                        feature = items[position]
+                        if seen[feature] == group:
+                            continue
+                        dx = features[feature, 0] - centres[row, 0]
+                        dy = features[feature, 1] - centres[row, 1]
+                        dz = features[feature, 2] - centres[row, 2]
+                        if dx * dx + dy * dy + dz * dz > reach[row] * reach[row]:
+                            continue
+                        seen[feature] = group
+                        mx = features[feature, 0] - pose[0, 3]
+                        my = features[feature, 1] - pose[1, 3]
+                        mz = features[feature, 2] - pose[2, 3]
+                        for axis in range(3):
+                            local[axis] = pose[0, axis] * mx + pose[1, axis] * my + pose[2, axis] * mz
+                            facing[axis] = -(
+                                pose[0, axis] * feature_normals[feature, 0]
+                                + pose[1, axis] * feature_normals[feature, 1]
+                                + pose[2, axis] * feature_normals[feature, 2]
+                            )
+                        gap, face = _piece_gap(planes[piece], edges[piece], sides[piece], local, facing, near, tie)
+                        if gap > near:  # the covers bound the farther ones
+                            continue
+                        if hits == capacity:
+                            capacity *= 2
+                            rows, found, gaps, normals = (
+                                _grown(rows, capacity),
+                                _grown(found, capacity),
+                                _grown(gaps, capacity),
+                                _grown(normals, capacity),
+                            )
+                        rows[hits], found[hits], gaps[hits] = row, feature, gap
+                        for axis in range(3):
+                            normals[hits, axis] = planes[piece, face, axis]
+                        hits += 1
+    return rows[:hits], found[:hits], gaps[:hits], normals[:hits]
 
-    Off a face (its foot on the face's plane inside the piece) that face's plane distance and
-    normal; off an edge or corner the nearest hull edge's distance, and of the faces at the nearest edges the one whose
-    normal best agrees with ``facing`` (m, 3; the object's inward normal there, in the link
-    frame), the link having no normal of its own there. Each piece is measured with its own
-    planes and edges (the model pads them to the largest piece's count)."""
-    gap, normal = np.empty(len(piece)), np.empty((len(piece), 3))
-    order = np.argsort(piece, kind="stable")
-    bounds = np.searchsorted(piece[order], np.arange(len(model.planes) + 1))
-    for number in np.flatnonzero(np.diff(bounds)):
-        rows = order[bounds[number] : bounds[number + 1]]
-        planes = model.planes[number]
-        planes = planes[planes[:, 3] > -np.inf]
-        signed = local[rows] @ planes[:, :3].T + planes[:, 3]
-        face = signed.argmax(axis=1)
-        gap[rows], normal[rows] = signed[np.arange(len(rows)), face], planes[face, :3]
-        corner = ((signed > 0).sum(axis=1) > 1) & (gap[rows] <= near)
-        # the largest plane distance is the distance when the point's foot on that face lies in
-        # the piece (a point above a face beside an obtuse edge is off both planes)
-        foot = signed[corner] - gap[rows][corner, None] * (planes[face[corner], :3] @ planes[:, :3].T)
-        corner[np.flatnonzero(corner)[(foot <= 0).all(axis=1)]] = False
-        if corner.any():
-            edges = model.piece_edges[number]
-            count = int(np.isfinite(edges[:, 0, 0]).sum())
-            at = rows[corner]
-            distance = _segment_distances(local[at], edges[:count])
-            gap[at] = distance.min(axis=1)
-            # at a corner several edges are nearest: all their faces are candidates, so that
-            # the choice does not hang on rounding
-            nearest = distance <= gap[at][:, None] + tol.edge_tie_m
-            sides = planes[model.edge_planes[number, :count], :3]  # (E, 2, 3)
-            agree = np.where(nearest[..., None], np.einsum("eki,ci->cek", sides, facing[at]), -np.inf)
-            best = agree.reshape(len(at), -1).argmax(axis=1)
-            normal[at] = sides.reshape(-1, 3)[best]
-    return gap, normal
+
+@njit(cache=True)
+def _grown(values, capacity):
+    out = np.empty((capacity,) + values.shape[1:], values.dtype)
+    out[: len(values)] = values
+    return out
 
 
-def _segment_distances(points, segments):
-    """(m, E) distances of (m, 3) points to (E, 2, 3) segments."""
-    start, span = segments[:, 0], segments[:, 1] - segments[:, 0]
-    offset = points[:, None] - start  # (m, E, 3)
-    along = np.clip(np.einsum("mek,ek->me", offset, span) / np.einsum("ek,ek->e", span, span), 0.0, 1.0)
-    rest = offset - along[..., None] * span
-    return np.sqrt(np.einsum("mek,mek->me", rest, rest))
+@njit(cache=True)
+def _piece_gap(planes, edges, sides, local, facing, near, tie):
+    """Signed distance of the link-frame point ``local`` (3,) to its convex piece (``planes``
+    (F, 4), ``edges`` (E, 2, 3), ``sides`` (E, 2), padded) and the plane (row of ``planes``)
+    whose normal is the contact's; beyond ``near`` only a lower bound (the largest plane
+    distance).
+
+    Off a face (its foot on the face's plane inside the piece) that face's plane distance;
+    off an edge or corner the nearest hull edge's distance, and of the faces at the nearest
+    edges the one whose normal best agrees with ``facing`` (the object's inward normal there,
+    link frame), the link having no normal of its own there. Scalar loops: this runs per
+    feature, where small arrays would cost more than the arithmetic."""
+    x, y, z = local[0], local[1], local[2]
+    gap, face, count, above = -np.inf, 0, 0, 0
+    while count < len(planes) and planes[count, 3] > -np.inf:
+        signed = planes[count, 0] * x + planes[count, 1] * y + planes[count, 2] * z + planes[count, 3]
+        if signed > gap:
+            gap, face = signed, count
+        above += signed > 0
+        count += 1
+    if gap > near or above <= 1:
+        return gap, face
+    # the largest plane distance is the distance when the point's foot on that face lies in
+    # the piece (a point above a face beside an obtuse edge is off both planes)
+    inside = True
+    for plane in range(count):
+        cosine = (
+            planes[plane, 0] * planes[face, 0] + planes[plane, 1] * planes[face, 1] + planes[plane, 2] * planes[face, 2]
+        )
+        signed = planes[plane, 0] * x + planes[plane, 1] * y + planes[plane, 2] * z + planes[plane, 3]
+        if signed - gap * cosine > 0:
+            inside = False
+            break
+    if inside:
+        return gap, face
+    best, used = np.inf, 0
+    while used < len(edges) and np.isfinite(edges[used, 0, 0]):
+        best = min(best, _segment_distance(x, y, z, edges[used]))
+        used += 1
+    # at a corner several edges are nearest: all their faces are candidates, so that the
+    # choice does not hang on rounding
+    agree = -np.inf
+    for edge in range(used):
+        if _segment_distance(x, y, z, edges[edge]) <= best + tie:
+            for side in range(2):
+                plane = sides[edge, side]
+                value = planes[plane, 0] * facing[0] + planes[plane, 1] * facing[1] + planes[plane, 2] * facing[2]
+                if value > agree:
+                    agree, face = value, plane
+    return best, face
+
+
+@njit(cache=True)
+def _segment_distance(x, y, z, segment):
+    """Distance of the point (x, y, z) to the (2, 3) ``segment``."""
+    ox, oy, oz = x - segment[0, 0], y - segment[0, 1], z - segment[0, 2]
+    sx, sy, sz = segment[1, 0] - segment[0, 0], segment[1, 1] - segment[0, 1], segment[1, 2] - segment[0, 2]
+    along = min(max((ox * sx + oy * sy + oz * sz) / (sx * sx + sy * sy + sz * sz), 0.0), 1.0)
+    rx, ry, rz = ox - along * sx, oy - along * sy, oz - along * sz
+    return np.sqrt(rx * rx + ry * ry + rz * rz)
 
 
 def collides(mesh, model, poses, *, overlap=None):

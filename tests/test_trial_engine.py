@@ -238,10 +238,8 @@ def test_a_point_above_a_face_beside_an_obtuse_edge_is_at_its_plane_distance():
     """A mesh link's hull has obtuse edges (a 10 deg crease here): a point 0.1 mm above one face,
     0.2 mm from the crease, is off both planes, yet its nearest point is on the face, 0.1 mm
     away, not on the crease (0.22 mm)."""
-    from types import SimpleNamespace
-
     from pipeline.kinematics import _hull_edges, _planes
-    from pipeline.proximity import _piece_distance
+    from pipeline.proximity import _piece_gap
 
     tilt = np.radians(10.0)
     ridge = [(x, 0.0, 0.0) for x in (-0.01, 0.01)]
@@ -250,13 +248,12 @@ def test_a_point_above_a_face_beside_an_obtuse_edge_is_at_its_plane_distance():
     hull = np.array(ridge + eaves + floor)
     planes = _planes(hull)
     segments, sides = _hull_edges(hull, planes)
-    model = SimpleNamespace(planes=planes[None], piece_edges=segments[None], edge_planes=sides[None])
     face = np.array([0.0, np.cos(tilt), -np.sin(tilt)])  # along the +y roof face, down from the ridge
     up = np.array([0.0, np.sin(tilt), np.cos(tilt)])  # the face's outward normal
     point = 0.0002 * face + 0.0001 * up
-    gap, normal = _piece_distance(model, np.zeros(1, np.int64), point[None], -up[None], near=0.004)
-    assert gap[0] == pytest.approx(0.0001, abs=1e-12)
-    np.testing.assert_allclose(normal[0], up, atol=1e-9)
+    gap, face = _piece_gap(planes, segments, sides, point, -up, 0.004, 1e-9)
+    assert gap == pytest.approx(0.0001, abs=1e-12)
+    np.testing.assert_allclose(planes[face, :3], up, atol=1e-9)
 
 
 def test_barrett_on_the_rim_of_the_mugs_6_mm_wall_touches_both_faces():
