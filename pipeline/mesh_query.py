@@ -82,6 +82,20 @@ def _grid_bounds(points, grid, origin, voxel, slack):
     return low, high
 
 
+@njit(cache=True)
+def _clearance(points, grid, origin, voxel, slack, box):
+    """(n,) lower bounds on the unsigned distance of (n, 3) points (see :meth:`ObjectMesh.clearance`)."""
+    low, high = _grid_bounds(points, grid, origin, voxel, slack)
+    out = np.empty(len(points))
+    for point in range(len(points)):
+        squared = 0.0
+        for axis in range(3):
+            beyond = max(box[0, axis] - points[point, axis], points[point, axis] - box[1, axis], 0.0)
+            squared += beyond * beyond
+        out[point] = max(low[point], -high[point], 0.0, np.sqrt(squared))
+    return out
+
+
 @dataclass(frozen=True)
 class Closest:
     """Exact closest-point answers for (n,) queries: ``points`` (n, 3) on the mesh, ``triangles``
@@ -191,7 +205,5 @@ class ObjectMesh:
     def clearance(self, points):
         """(n,) lower bound (m) on the unsigned distance of (n, 3) points to the mesh: the grid's,
         or beyond the grid the distance to the mesh's bounding box."""
-        points = np.asarray(points, np.float64).reshape(-1, 3)
-        low, high = self.bounds(points)
-        outside = np.linalg.norm(np.maximum(np.maximum(self.box[0] - points, points - self.box[1]), 0.0), axis=1)
-        return np.maximum(np.maximum(np.maximum(low, -high), 0.0), outside)
+        points = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
+        return _clearance(points, self.grid, self.origin, self.voxel, tol.grid_slack * self.voxel, self.box)

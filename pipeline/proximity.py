@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .arrays import expand_ranges
+from .arrays import expand_ranges, minimum_at
 from .kinematics import transform
 from .tol import tol
 
@@ -82,7 +82,7 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
         exact = lower <= near
         found = mesh.closest(world[exact])
         lower[exact] = found.distances
-        np.minimum.at(distance, pair, lower)
+        minimum_at(distance, pair, lower)
         if tolerance is not None:
             hit = found.distances <= tolerance
             touches[0].append(pair[exact][hit])
@@ -90,9 +90,9 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
             touches[2].append(found.normals[hit])
         bounds = []
         pair, vertex, signed, normal = _vertex_side(mesh, model, flat, slot, close, near, bounds)
-        np.minimum.at(distance, *bounds[0])
+        minimum_at(distance, *bounds[0])
         gap = np.maximum(signed, 0.0)
-        np.minimum.at(distance, pair, gap)
+        minimum_at(distance, pair, gap)
         if tolerance is not None:
             hit = gap <= tolerance
             touches[0].append(pair[hit])
