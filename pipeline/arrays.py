@@ -1,7 +1,6 @@
 """Small vectorised array helpers shared by the geometry modules."""
 
 import numpy as np
-from numba import njit
 
 
 def unit_rows(vectors):
@@ -66,12 +65,3 @@ def group_rows(rows):
 def vectors(table, prefix):
     """The ``(n, 3)`` array of a table's columns ``{prefix}_x, _y, _z`` (prefix grasp, approach or orient)."""
     return table[[f"{prefix}_x", f"{prefix}_y", f"{prefix}_z"]].to_numpy()
-
-
-@njit(cache=True)
-def minimum_at(out, index, values):
-    """``np.minimum.at(out, index, values)``, in place: out[index[i]] = min(out[index[i]], values[i])
-    (numpy's unbuffered ``at`` costs about 0.1 ms a call on the trial's arrays)."""
-    for position in range(len(index)):
-        if values[position] < out[index[position]]:
-            out[index[position]] = values[position]

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .arrays import expand_ranges, minimum_at
+from .arrays import expand_ranges
 from .kinematics import transform
 from .tol import tol
 
@@ -82,7 +82,7 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
         exact = lower <= near
         found = mesh.closest(world[exact])
         lower[exact] = found.distances
-        minimum_at(distance, pair, lower)
+        _minimum_at(distance, pair, lower)
         if tolerance is not None:
             hit = found.distances <= tolerance
             touches[0].append(pair[exact][hit])
@@ -90,9 +90,9 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
             touches[2].append(found.normals[hit])
         bounds = []
         pair, vertex, signed, normal = _vertex_side(mesh, model, flat, slot, close, near, bounds)
-        minimum_at(distance, *bounds[0])
+        _minimum_at(distance, *bounds[0])
         gap = np.maximum(signed, 0.0)
-        minimum_at(distance, pair, gap)
+        _minimum_at(distance, pair, gap)
         if tolerance is not None:
             hit = gap <= tolerance
             touches[0].append(pair[hit])
@@ -286,6 +286,15 @@ def _segment_distance(x, y, z, segment):
     along = min(max((ox * sx + oy * sy + oz * sz) / (sx * sx + sy * sy + sz * sz), 0.0), 1.0)
     rx, ry, rz = ox - along * sx, oy - along * sy, oz - along * sz
     return np.sqrt(rx * rx + ry * ry + rz * rz)
+
+
+@njit(cache=True)
+def _minimum_at(out, index, values):
+    """``np.minimum.at(out, index, values)``, in place: out[index[i]] = min(out[index[i]], values[i])
+    (numpy's unbuffered ``at`` costs about 0.1 ms a call on the trial's arrays)."""
+    for position in range(len(index)):
+        if values[position] < out[index[position]]:
+            out[index[position]] = values[position]
 
 
 def collides(mesh, model, poses, *, overlap=None):
