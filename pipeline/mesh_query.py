@@ -43,14 +43,17 @@ def _edge_points(vertices, faces, face_normals, spacing):
 
 
 FEATURE_CELL_M = 0.006  # the feature bins' side: a link cover's ball (about 1 cm) spans a few
+FEATURE_CELLS = 64  # the most bins along an axis: a 1 m object gets 1.6 cm bins, not 5 M of them
 
 
 def _cells(points, size):
     """(origin (3,), size, shape (3,), starts (c + 1,), indices (n,)): the (n, 3) ``points``
-    binned in cubic cells of ``size`` m, as compressed rows (cell ``(i * shape[1] + j) *
+    binned in cubic cells of ``size`` m (larger if :data:`FEATURE_CELLS` cells along an axis do not
+    span them), as compressed rows (cell ``(i * shape[1] + j) *
     shape[2] + k`` holds ``indices[starts[c]:starts[c + 1]]``, in increasing order)."""
     origin = points.min(axis=0) if len(points) else np.zeros(3)
     upper = points.max(axis=0) if len(points) else np.zeros(3)
+    size = max(size, float((upper - origin).max()) / (FEATURE_CELLS - 1))
     shape = np.floor((upper - origin) / size).astype(np.int64) + 1
     index = np.floor((points - origin) / size).astype(np.int64)
     cell = (index[:, 0] * shape[1] + index[:, 1]) * shape[2] + index[:, 2]
