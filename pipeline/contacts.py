@@ -55,7 +55,7 @@ def region_corners(points, normals, *, coplanar_deg=5.0, merge_m=None, max_corne
     merge_m = tol.contact_merge_m if merge_m is None else merge_m
     # candidates are compared after rounding: several measures can find the same touching point
     rounded = np.round(np.c_[points, normals], tol.point_decimals)
-    corners = _corners(points, normals, rounded, np.cos(np.radians(coplanar_deg)), merge_m)
+    corners = _corners(points, normals, rounded, np.cos(np.radians(coplanar_deg)), merge_m, tol.straight_turn)
     return np.sort(_farthest(points, corners, max_corners))
 
 
@@ -63,10 +63,10 @@ _ROW, _NORMAL = types.UniTuple(types.float64, 6), types.UniTuple(types.float64, 
 
 
 @njit(cache=True)
-def _corners(points, normals, rounded, agree_cos, merge_m):
+def _corners(points, normals, rounded, agree_cos, merge_m, straight):
     """Sorted indices of the hull corners of every region (see :func:`region_corners`): each
     rounded candidate once (its first occurrence); regions connected by agreeing (rounded)
-    normals; per region :func:`_hull_2d`."""
+    normals; per region :func:`_hull_2d` (``straight``: :attr:`pipeline.tol.Tolerances.straight_turn`)."""
     count = len(points)
     seen = Dict.empty(key_type=_ROW, value_type=types.int64)
     rows = np.empty(count, np.int64)
@@ -103,7 +103,7 @@ def _corners(points, normals, rounded, agree_cos, merge_m):
     corner = np.zeros(count, np.bool_)
     for label in np.unique(region):
         members = rows[region == label]
-        for index in _hull_2d(points[members], normals[members], merge_m):
+        for index in _hull_2d(points[members], normals[members], merge_m, straight):
             corner[members[index]] = True
     return np.flatnonzero(corner)
 
@@ -116,7 +116,7 @@ def _root(labels, node):
 
 
 @njit(cache=True)
-def _hull_2d(points, normals, merge_m):
+def _hull_2d(points, normals, merge_m, straight):
     """Corners (indices) of the 2D convex hull of (k, 3) points across their mean normal: the
     two ends when they are (nearly) on a line, the first when they are (nearly) one point."""
     count = len(points)
@@ -139,20 +139,21 @@ def _hull_2d(points, normals, merge_m):
     if np.sqrt(largest) <= merge_m:
         return np.zeros(1, np.int64)
     if np.sqrt(smallest) > merge_m * np.sqrt(count):
-        return _monotone_chain(plane)
+        return _monotone_chain(plane, straight)
     axis = np.array([largest - yy, xy]) if xx >= yy else np.array([xy, largest - xx])
     along = centred @ (axis / np.linalg.norm(axis))
     return np.unique(np.array([along.argmin(), along.argmax()]))
 
 
 @njit(cache=True)
-def _monotone_chain(plane):
+def _monotone_chain(plane, straight):
     """Sorted indices of the corners of the convex hull of (k, 2) points (Andrew's monotone
-    chain); a point on an edge, to rounding, is not a corner (as with Qhull)."""
+    chain); a point on an edge, its turn within ``straight`` x the extent squared, is not a
+    corner (as with Qhull)."""
     order = np.argsort(plane[:, 1], kind="mergesort")
     order = order[np.argsort(plane[order, 0], kind="mergesort")]
     extent = max(plane[:, 0].max() - plane[:, 0].min(), plane[:, 1].max() - plane[:, 1].min())
-    slack = 1e-12 * extent * extent  # a cross product this small is a straight turn
+    slack = straight * extent * extent
     chain = np.empty(2 * len(order) + 1, np.int64)
     size = 0
     for sweep in range(2):  # the lower hull left to right, then the upper one back

@@ -48,6 +48,9 @@ class Tolerances:
     crease_rad: float = 1e-6
     """Mesh edges whose faces meet at a larger angle are measured along their length
     (:mod:`pipeline.mesh_query`)."""
+    straight_turn: float = 1e-12
+    """A 2D hull turn (cross product) at most this x the points' extent squared is straight: the
+    middle point is on an edge, not a corner (contact regions, :mod:`pipeline.contacts`)."""
     grid_slack: float = 1e-6
     """Slack, as a fraction of a cell, added to the distance grid's bounds for open3d's float32
     distances (good to about 1e-7 of the object's size; mesh_query)."""
