@@ -169,7 +169,6 @@ def _monotone_chain(plane, straight):
             chain[size] = index
             size += 1
         size -= 1  # each half ends where the other starts
-        start = size
     return np.unique(chain[:size])
 
 

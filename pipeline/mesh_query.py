@@ -48,9 +48,9 @@ FEATURE_CELLS = 64  # the most bins along an axis: a 1 m object gets 1.6 cm bins
 
 def _cells(points, size):
     """(origin (3,), size, shape (3,), starts (c + 1,), indices (n,)): the (n, 3) ``points``
-    binned in cubic cells of ``size`` m (larger if :data:`FEATURE_CELLS` cells along an axis do not
-    span them), as compressed rows (cell ``(i * shape[1] + j) *
-    shape[2] + k`` holds ``indices[starts[c]:starts[c + 1]]``, in increasing order)."""
+    binned in cubic cells of ``size`` m (larger if :data:`FEATURE_CELLS` cells along an axis do
+    not span them), as compressed rows: cell ``c = (i * shape[1] + j) * shape[2] + k`` holds
+    ``indices[starts[c]:starts[c + 1]]``, in increasing order."""
     origin = points.min(axis=0) if len(points) else np.zeros(3)
     upper = points.max(axis=0) if len(points) else np.zeros(3)
     size = max(size, float((upper - origin).max()) / (FEATURE_CELLS - 1))
@@ -68,20 +68,15 @@ def _grid_bounds(points, grid, origin, voxel, slack):
     nearest node (see :meth:`ObjectMesh.bounds`)."""
     low, high = np.empty(len(points)), np.empty(len(points))
     last = np.array(grid.shape) - 1
+    cell = np.empty(3, np.int64)
     for point in range(len(points)):
         squared = 0.0
-        i, j, k = 0, 0, 0
         for axis in range(3):
-            cell = min(max(np.int64(np.rint((points[point, axis] - origin[axis]) / voxel)), 0), last[axis])
-            squared += (points[point, axis] - (origin[axis] + cell * voxel)) ** 2
-            if axis == 0:
-                i = cell
-            elif axis == 1:
-                j = cell
-            else:
-                k = cell
+            cell[axis] = min(max(np.int64(np.rint((points[point, axis] - origin[axis]) / voxel)), 0), last[axis])
+            squared += (points[point, axis] - (origin[axis] + cell[axis] * voxel)) ** 2
         reach = np.sqrt(squared) + slack
-        low[point], high[point] = grid[i, j, k] - reach, grid[i, j, k] + reach
+        node = grid[cell[0], cell[1], cell[2]]
+        low[point], high[point] = node - reach, node + reach
     return low, high
 
 
