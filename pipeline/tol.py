@@ -20,6 +20,9 @@ class Tolerances:
     """An origin nearer than this to a hull facet counts as on the hull: epsilon 0 (quality)."""
     hull_beyond: float = 1e-10
     """A wrench must lie this far past a facet's plane to count as beyond it (quality's grown hull)."""
+    hull_sliver: float = 1e-9
+    """A polytope facet whose vertex is nearer than this x its edge's length to the span of the
+    facet's other edges is a sliver: epsilon is then found with Qhull (:mod:`pipeline.expanding_hull`)."""
     wrench_decimals: int = 12
     """Wrenches equal at this rounding are one (symmetric contacts only slow Qhull down)."""
     edge_tie_m: float = 1e-9

@@ -248,8 +248,19 @@ def test_epsilon_grows_with_mu():
     assert 0 < eps[0] < eps[1] < eps[2]
 
 
+@pytest.fixture(params=["expanding", "qhull"])
+def grown_by(request, monkeypatch):
+    """Each grown-hull test runs twice: by the expanding polytope, then as if it had met a
+    degenerate facet, by Qhull's grown hulls (its fallback)."""
+    if request.param == "qhull":
+        import pipeline.quality as quality
+
+        monkeypatch.setattr(quality, "nearest_facet", lambda wrenches: None)
+    return request.param
+
+
 @pytest.mark.parametrize("spread", [np.pi, np.pi / 2])
-def test_grown_hull_gives_the_whole_hulls_epsilon(spread, rng):
+def test_grown_hull_gives_the_whole_hulls_epsilon(spread, rng, grown_by):
     """Many contacts (the engine's usual case): epsilon from the grown hull equals the nearest
     facet of Qhull's hull of every wrench; contacts within ``spread`` of a pole (a hemisphere) are
     often not force closure, which must agree too."""
@@ -289,7 +300,7 @@ def test_supports_skip_only_facets_that_cannot_matter(rng):
     assert np.all(np.diff(distance[facets]) >= 0)  # nearest first
 
 
-def test_grown_hull_with_many_contacts_gives_the_whole_hulls_epsilon(rng):
+def test_grown_hull_with_many_contacts_gives_the_whole_hulls_epsilon(rng, grown_by):
     for count in (40, 80):
         outward = rng.normal(size=(count, 3))
         outward /= np.linalg.norm(outward, axis=1, keepdims=True)
@@ -307,6 +318,7 @@ def test_joggled_small_hulls_still_end(monkeypatch, rng):
     import pipeline.quality as quality
 
     monkeypatch.setattr(quality, "QHULL_OPTIONS", ("QJ",))
+    monkeypatch.setattr(quality, "nearest_facet", lambda wrenches: None)  # Qhull's path
     for _ in range(30):
         outward = rng.normal(size=(rng.integers(3, 12), 3))
         outward /= np.linalg.norm(outward, axis=1, keepdims=True)
