@@ -83,14 +83,6 @@ class HandModel:
         return values
 
 
-def _rotations(axis, angle):
-    """(n, 3, 3) rotations by ``angle`` (n,) rad about the unit ``axis`` (3,) (Rodrigues)."""
-    x, y, z = axis
-    cross = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    sin, cos = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
-    return np.eye(3) + sin * cross + (1.0 - cos) * (cross @ cross)
-
-
 def link_poses(model, base, q):
     """World poses of every link.
 
@@ -106,20 +98,68 @@ def link_poses(model, base, q):
     -------
     (n, L, 4, 4) float64
     """
-    values = np.where(model.driver >= 0, q[:, np.maximum(model.driver, 0)] * model.multiplier + model.offset, 0.0)
-    poses = np.empty((len(base), len(model.links), 4, 4))
-    poses[:, 0] = base
-    for link in range(1, len(model.links)):
-        frame = poses[:, model.parent[link]] @ model.origin[link]
-        if model.driver[link] < 0:
-            poses[:, link] = frame
-        elif model.prismatic[link]:
-            poses[:, link] = frame
-            poses[:, link, :3, 3] += np.einsum("nij,j->ni", frame[:, :3, :3], model.axis[link]) * values[:, link, None]
-        else:
-            poses[:, link, :3, 3] = frame[:, :3, 3]
-            poses[:, link, :3, :3] = frame[:, :3, :3] @ _rotations(model.axis[link], values[:, link])
-            poses[:, link, 3] = (0.0, 0.0, 0.0, 1.0)
+    return _link_poses(
+        np.ascontiguousarray(base, np.float64),
+        np.ascontiguousarray(q, np.float64),
+        model.parent,
+        model.origin,
+        model.driver,
+        model.multiplier,
+        model.offset,
+        model.prismatic,
+        model.axis,
+    )
+
+
+@njit(cache=True)
+def _link_poses(base, q, parent, origin, driver, multiplier, offset, prismatic, axis):
+    """See :func:`link_poses`: links in tree order (a parent before its children)."""
+    count, links = len(q), len(parent)
+    poses = np.empty((count, links, 4, 4))
+    frame = np.empty((4, 4))
+    # Rodrigues: R = I + sin(angle) K + (1 - cos(angle)) K K, K the axis' cross-product matrix
+    cross = np.zeros((links, 3, 3))
+    for link in range(links):
+        x, y, z = axis[link]
+        cross[link, 0, 1], cross[link, 0, 2], cross[link, 1, 2] = -z, y, -x
+        cross[link, 1, 0], cross[link, 2, 0], cross[link, 2, 1] = z, -y, x
+    square = np.zeros((links, 3, 3))
+    for link in range(links):
+        for i in range(3):
+            for j in range(3):
+                for k in range(3):
+                    square[link, i, j] += cross[link, i, k] * cross[link, k, j]
+    for row in range(count):
+        poses[row, 0] = base[row]
+        for link in range(1, links):
+            above = poses[row, parent[link]]
+            for i in range(4):
+                for j in range(4):
+                    frame[i, j] = (
+                        above[i, 0] * origin[link, 0, j]
+                        + above[i, 1] * origin[link, 1, j]
+                        + above[i, 2] * origin[link, 2, j]
+                        + above[i, 3] * origin[link, 3, j]
+                    )
+            pose = poses[row, link]
+            pose[:, :] = frame
+            if driver[link] < 0:
+                continue
+            value = q[row, driver[link]] * multiplier[link] + offset[link]
+            if prismatic[link]:
+                for i in range(3):
+                    pose[i, 3] += value * (
+                        frame[i, 0] * axis[link, 0] + frame[i, 1] * axis[link, 1] + frame[i, 2] * axis[link, 2]
+                    )
+                continue
+            sin, cos = np.sin(value), np.cos(value)
+            for i in range(3):
+                for j in range(3):
+                    total = 0.0
+                    for k in range(3):
+                        turn = ((1.0 if k == j else 0.0) + sin * cross[link, k, j]) + (1.0 - cos) * square[link, k, j]
+                        total += frame[i, k] * turn
+                    pose[i, j] = total
     return poses
 
 

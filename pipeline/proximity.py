@@ -315,23 +315,26 @@ def collides(mesh, model, poses, *, overlap=None):
     swallowed = (high < -radius) & (radius > 0)  # the whole link is inside
     hit = np.zeros(total, bool)
     hit[rows[swallowed]] = True
-    depth = np.zeros(total)
-    # signed distance is 1-Lipschitz: a point at most s < 0 inside stays inside for a move < -s
-    np.maximum.at(depth, rows[swallowed], -high[swallowed] - radius[swallowed])
+    # signed distance is 1-Lipschitz: a point at most s < 0 inside stays inside for a move < -s;
+    # per hand the deepest such bound (the most negative s), so depth = -deepest
+    deepest = np.zeros(total)
+    _minimum_at(deepest, rows[swallowed], high[swallowed] + radius[swallowed])
     unsure = np.flatnonzero((radius > 0) & (low <= radius) & (high >= -radius) & ~hit[rows])
     if not len(unsure):
-        return hit, depth
+        return hit, -deepest
     starts = _starts(model.point_link, count)
     owner, point = expand_ranges(starts[links[unsure]], np.diff(starts)[links[unsure]])
     pair = unsure[owner]
     world = transform(flat, pair, model.points[point])
     low, high = mesh.bounds(world)
     inside = high < 0
-    np.maximum.at(depth, rows[pair[inside]], -high[inside])
-    check = np.flatnonzero((low <= 0) & ~inside)
+    _minimum_at(deepest, rows[pair[inside]], high[inside])
+    hit[rows[pair[inside]]] = True
+    # the exact (ray parity) test only where the grid is unsure and the hand not yet known to hit
+    check = np.flatnonzero((low <= 0) & ~inside & ~hit[rows[pair]])
     inside[check] = mesh.inside(world[check])
     hit[rows[pair[inside]]] = True
     unsure = unsure[~hit[rows[unsure]]]  # the vertex test only where no link point is inside
     pair, _, signed, _ = _vertex_side(mesh, model, flat, slot, unsure, 0.0)
     hit[rows[pair[signed < -overlap]]] = True
-    return hit, depth
+    return hit, -deepest

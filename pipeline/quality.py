@@ -238,18 +238,18 @@ def epsilon_quality(
     if len(wrenches) < 2:  # one contact's cone never holds the origin inside
         return none
     wrenches = wrenches.reshape(-1, 6)
-    # keep the contacts' order: a lexicographically sorted input makes Qhull's incremental
-    # construction hit precision errors (42 of 50 random grasps without pre-merging)
-    _, first = np.unique(np.round(wrenches, tol.wrench_decimals), axis=0, return_index=True)
-    wrenches = wrenches[np.sort(first)]
-    # Qhull needs a full-dimensional point set: check the affine rank before calling it
+    # a hull needs a full-dimensional point set: check the affine rank before growing one
     spread = np.linalg.svd(wrenches - wrenches.mean(axis=0), compute_uv=False)
     if len(wrenches) < 7 or spread[5] <= tol.rank * spread[0]:
         return none
-    distance = None
-    if not volume:
-        distance = nearest_facet(wrenches)
-        if distance is None:  # a degenerate facet: Qhull's merging handles it
+    distance = None if volume else nearest_facet(wrenches)  # a repeated wrench costs it nothing
+    if distance is None:
+        # for Qhull (a degenerate facet, or the volume), each wrench once in the contacts'
+        # order: a lexicographically sorted input makes Qhull's incremental construction hit
+        # precision errors (42 of 50 random grasps without pre-merging)
+        _, first = np.unique(np.round(wrenches, tol.wrench_decimals), axis=0, return_index=True)
+        wrenches = wrenches[np.sort(first)]
+        if not volume:
             distance = _nearest_facet(wrenches)
     if distance is None:  # the volume asked for, or a small hull failed: the whole hull decides
         whole = _hull(wrenches)

@@ -216,6 +216,7 @@ class GraspEngine:
         order = np.argsort(touches.pair, kind="stable")
         pair, points, normals = touches.pair[order], touches.points[order], touches.normals[order]
         starts = np.searchsorted(pair, np.arange(len(rows) + 1) * len(links))
+        quaternions = Rotation.from_matrix(base[:, :3, :3]).as_quat()
         for position, number in enumerate(rows):
             found = slice(starts[position], starts[position + 1])
             results[number] = self._score(
@@ -224,6 +225,7 @@ class GraspEngine:
                 points[found],
                 normals[found],
                 base[position],
+                quaternions[position],
                 q[position],
                 stops[position],
                 steps[position],
@@ -348,12 +350,12 @@ class GraspEngine:
             walk = np.where(walk > 0, model.parent[np.maximum(walk, 0)], walk)
         return velocity
 
-    def _score(self, distance, pair, points, normals, base, q, stops, steps, retract, approach):
+    def _score(self, distance, pair, points, normals, base, quaternion, q, stops, steps, retract, approach):
         """The :class:`TrialResult` of one closed hand from its measure: ``distance`` (G,) of each
         link with geometry, and the touching ``pair`` (t,) (index among those links), object
-        ``points`` (t, 3) and ``normals`` (t, 3)."""
+        ``points`` (t, 3) and ``normals`` (t, 3); ``base`` (4, 4) its base pose, ``quaternion``
+        (4,) the same rotation."""
         model, settings = self.model, self.settings
-        quaternion = Rotation.from_matrix(base[:3, :3]).as_quat()
         pose = dict(
             retract_m=retract,
             approach_m=approach,
