@@ -53,7 +53,8 @@ class HandModel:
     moves: np.ndarray  # (J, L) bool, joint j moves link l
     lever: np.ndarray  # (J, L) m per unit of joint
     points: np.ndarray  # (P, 3) link frame
-    point_link: np.ndarray  # (P,)
+    point_link: np.ndarray  # (P,) sorted
+    point_cover: np.ndarray  # (P,) sorted: the nearest cover sphere of the point's piece
     link_centre: np.ndarray  # (L, 3) link frame, centre of the link's bounding sphere
     link_radius: np.ndarray  # (L,) 0 for a link without geometry
     planes: np.ndarray  # (K, F, 4) unit outward normal and offset, n . x + d <= 0 inside; padded rows never bind
@@ -65,6 +66,7 @@ class HandModel:
     cover_centre: np.ndarray  # (C, 3) link frame: spheres covering the pieces, sorted by link
     cover_radius: np.ndarray  # (C,)
     cover_piece: np.ndarray  # (C,)
+    cover_reach: np.ndarray  # (C,) farthest of its points (``point_cover``) from its centre; its radius if none
     box_centre: np.ndarray  # (S, 3) link frame
     box_rotation: np.ndarray  # (S, 3, 3)
     box_half: np.ndarray  # (S, 3)
@@ -360,12 +362,13 @@ def _build(frozen, spacing):
     lower = np.array([hand.limits[name][0] for name in actuated])
     upper = np.array([hand.limits[name][1] for name in actuated])
     # geometry
-    points, point_link, pieces, piece_link, boxes = [], [], [], [], []
+    points, point_link, pieces, piece_link, piece_points, boxes = [], [], [], [], [], []
     for name in links:
         for shape in robot.shapes[name]:
             local, hull = _shape_points_and_hull(shape, spacing)
             points.append(local)
             point_link.append(np.full(len(local), index[name]))
+            piece_points.append(len(local))
             pieces.append(hull)
             piece_link.append(index[name])
             if shape.kind == "box":
@@ -402,6 +405,23 @@ def _build(frozen, spacing):
         if covers
         else np.zeros(0, int)
     )
+    cover_centre = np.concatenate([c[0] for c in covers]).reshape(-1, 3) if covers else np.zeros((0, 3))
+    # each point joins the nearest cover sphere of its piece, so that a measure can skip the
+    # points of a sphere that is far from the object (points stay sorted by link: covers are)
+    point_cover = np.zeros(len(points), int)
+    piece_start = np.searchsorted(cover_piece, np.arange(len(pieces) + 1))
+    for piece, rows in enumerate(np.split(np.arange(len(points)), np.cumsum(piece_points)[:-1])):
+        own = cover_centre[piece_start[piece] : piece_start[piece + 1]]
+        gaps = np.linalg.norm(points[rows, None] - own[None], axis=2)
+        point_cover[rows] = piece_start[piece] + gaps.argmin(axis=1)
+    order = np.argsort(point_cover, kind="stable")
+    points, point_link, point_cover = points[order], point_link[order], point_cover[order]
+    cover_reach = np.zeros(len(cover_centre))
+    np.maximum.at(cover_reach, point_cover, np.linalg.norm(points - cover_centre[point_cover], axis=1))
+    covered = np.zeros(len(cover_centre), bool)
+    covered[point_cover] = True
+    cover_radius = np.concatenate([c[1] for c in covers]) if covers else np.zeros(0)
+    cover_reach[~covered] = cover_radius[~covered]
     # levers: per actuated joint and link, a bound on point speed valid in every configuration
     reach = np.linalg.norm(origin[:, :3, 3], axis=1)  # distance between consecutive joint frames
     own_reach = np.array(
@@ -441,6 +461,7 @@ def _build(frozen, spacing):
         lever,
         points,
         point_link,
+        point_cover,
         link_centre,
         link_radius,
         padded,
@@ -449,9 +470,10 @@ def _build(frozen, spacing):
         edge_planes,
         piece_centre,
         piece_radius,
-        np.concatenate([c[0] for c in covers]).reshape(-1, 3) if covers else np.zeros((0, 3)),
-        np.concatenate([c[1] for c in covers]) if covers else np.zeros(0),
+        cover_centre,
+        cover_radius,
         cover_piece,
+        cover_reach,
         np.array([box[0] for box in boxes]).reshape(-1, 3),
         np.array([box[1] for box in boxes]).reshape(-1, 3, 3),
         np.array([box[2] for box in boxes]).reshape(-1, 3),

@@ -74,22 +74,26 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
     distance[close] = np.inf
     touches = ([], [], [])
     if len(close):
-        starts = _starts(model.point_link, count)
-        owner, point = expand_ranges(starts[links[close]], np.diff(starts)[links[close]])
-        pair = close[owner]
-        world = transform(flat, slot[pair], model.points[point])
+        pair, cover, centres, clearance = _covers(mesh, model, flat, slot, close)
+        # link points: those of cover spheres within reach; the others are farther than
+        # ``near``, bounded below by their sphere
+        far = clearance - model.cover_reach[cover] > near
+        _minimum_at(distance, pair[far], clearance[far] - model.cover_reach[cover[far]])
+        point_pair, world = _cover_points(model, flat, slot, pair[~far], cover[~far])
         lower = mesh.clearance(world)
         exact = lower <= near
         found = mesh.closest(world[exact])
         lower[exact] = found.distances
-        _minimum_at(distance, pair, lower)
+        _minimum_at(distance, point_pair, lower)
         if tolerance is not None:
             hit = found.distances <= tolerance
-            touches[0].append(pair[exact][hit])
+            touches[0].append(point_pair[exact][hit])
             touches[1].append(found.points[hit])
             touches[2].append(found.normals[hit])
         bounds = []
-        pair, vertex, signed, normal = _vertex_side(mesh, model, flat, slot, close, near, bounds)
+        pair, vertex, signed, normal = _vertex_side(
+            mesh, model, flat, slot, pair, cover, centres, clearance, near, bounds
+        )
         _minimum_at(distance, *bounds[0])
         gap = np.maximum(signed, 0.0)
         _minimum_at(distance, pair, gap)
@@ -106,22 +110,35 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
     return distance, Touches(joined[0].astype(np.int64), *joined[1:])
 
 
-def _vertex_side(mesh, model, flat, slot, close, near, bounds=None):
-    """Mesh features within ``near`` of the convex pieces of the pairs ``close``: their pair (k,),
+def _covers(mesh, model, flat, slot, close):
+    """The cover spheres of the pairs ``close``: their pair (k,), cover (k,), world centres (k, 3)
+    and clearance (k,) m (a lower bound on their centres' distance to the object)."""
+    count = len(model.links)
+    starts = _starts(model.piece_link[model.cover_piece], count)
+    link = slot[close] % count
+    owner, cover = expand_ranges(starts[link], np.diff(starts)[link])
+    pair = close[owner]
+    centres = transform(flat, slot[pair], model.cover_centre[cover])
+    return pair, cover, centres, mesh.clearance(centres)
+
+
+def _cover_points(model, flat, slot, pair, cover):
+    """The link points of cover spheres ``cover`` (k,) of pairs ``pair`` (k,): their pair (m,)
+    and world positions (m, 3)."""
+    starts = _starts(model.point_cover, len(model.cover_radius))
+    owner, point = expand_ranges(starts[cover], np.diff(starts)[cover])
+    return pair[owner], transform(flat, slot[pair[owner]], model.points[point])
+
+
+def _vertex_side(mesh, model, flat, slot, pair, cover, centres, clearance, near, bounds=None):
+    """Mesh features within ``near`` of the convex pieces of the cover spheres ``cover`` of
+    pairs ``pair`` (:func:`_covers`, with their ``centres`` and ``clearance``): their pair (k,),
     feature (k,), distance to the piece (k,) m (the largest plane distance, negative, inside) and the contact
     normal (k, 3) pointing out of the link (:func:`_piece_gap`). ``bounds``, a list, receives (pairs, m) of
     the cover spheres too far for any vertex to be within ``near``: their lower bounds, which
     keep the link's distance a bound when its nearest part is a face away from its edges."""
-    count = len(model.links)
-    cover_link = model.piece_link[model.cover_piece]
-    starts = _starts(cover_link, count)
-    link = slot[close] % count
-    owner, cover = expand_ranges(starts[link], np.diff(starts)[link])
     empty = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 3)))
-    pair = close[owner]
-    centres = transform(flat, slot[pair], model.cover_centre[cover])
     reach = model.cover_radius[cover] + near
-    clearance = mesh.clearance(centres)
     needed = clearance <= reach  # a cover sphere farther than its reach holds no vertex
     if bounds is not None:
         # a far cover is at least its clearance less its radius away; past a near one's reach,
@@ -322,6 +339,8 @@ def collides(mesh, model, poses, *, overlap=None):
     unsure = np.flatnonzero((radius > 0) & (low <= radius) & (high >= -radius) & ~hit[rows])
     if not len(unsure):
         return hit, -deepest
+    # every link point of those links (a sphere-level cull costs more than it saves here: a
+    # hand being retreated is close to the surface)
     starts = _starts(model.point_link, count)
     owner, point = expand_ranges(starts[links[unsure]], np.diff(starts)[links[unsure]])
     pair = unsure[owner]
@@ -335,6 +354,6 @@ def collides(mesh, model, poses, *, overlap=None):
     inside[check] = mesh.inside(world[check])
     hit[rows[pair[inside]]] = True
     unsure = unsure[~hit[rows[unsure]]]  # the vertex test only where no link point is inside
-    pair, _, signed, _ = _vertex_side(mesh, model, flat, slot, unsure, 0.0)
+    pair, _, signed, _ = _vertex_side(mesh, model, flat, slot, *_covers(mesh, model, flat, slot, unsure), 0.0)
     hit[rows[pair[signed < -overlap]]] = True
     return hit, -deepest

@@ -33,6 +33,7 @@ Duff, T. et al. (2017). Building an orthonormal basis, revisited. JCGT 6(1).
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.spatial import ConvexHull, QhullError
 
 from .arrays import unit_rows
@@ -69,15 +70,11 @@ class Quality:
     force_closure: bool
 
 
-def _tangents(normals):
-    """Two ``(n, 3)`` unit tangents t1, t2 with (t1, t2, n) right-handed, by Duff et al. (2017)."""
-    x, y, z = normals.T
-    sign = np.where(z >= 0, 1.0, -1.0)  # branchless: continuous except across z = 0
-    a = -1.0 / (sign + z)
-    b = x * y * a
-    t1 = np.stack([1 + sign * x * x * a, sign * b, -sign * x], axis=1)
-    t2 = np.stack([b, sign + y * y * a, -y], axis=1)
-    return t1, t2
+def _check_cone(mu, edges):
+    if mu < 0:
+        raise ValueError(f"mu must be >= 0, got {mu}")
+    if edges < 3:
+        raise ValueError(f"edges must be >= 3, got {edges}")
 
 
 def friction_cone(normals, mu=0.5, edges=8):
@@ -96,17 +93,11 @@ def friction_cone(normals, mu=0.5, edges=8):
     -------
     (n, edges, 3) float64
         Edge k is ``n + mu (cos(2 pi k / edges) t1 + sin(2 pi k / edges) t2)``: unit normal
-        component, tangential length ``mu``.
+        component, tangential length ``mu``; (t1, t2, n) right-handed, by Duff et al. (2017).
     """
-    if mu < 0:
-        raise ValueError(f"mu must be >= 0, got {mu}")
-    if edges < 3:
-        raise ValueError(f"edges must be >= 3, got {edges}")
+    _check_cone(mu, edges)
     normals = unit_rows(as_points("normals", normals, allow_empty=True))
-    t1, t2 = _tangents(normals)
-    angle = 2.0 * np.pi * np.arange(edges) / edges
-    tangential = np.cos(angle)[None, :, None] * t1[:, None] + np.sin(angle)[None, :, None] * t2[:, None]
-    return normals[:, None] + mu * tangential
+    return _wrenches(normals, normals, float(mu), int(edges), 1.0, 0.0)[:, :edges, :3]
 
 
 def contact_wrenches(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, torsional_friction=0.0, center=None):
@@ -134,6 +125,7 @@ def contact_wrenches(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, tors
         ``(force, torque / torque_scale)`` rows; k = ``edges``, or ``edges + 2`` with torsional
         friction, the extra two being force n with torque ``(p - center) x n +- gamma n``.
     """
+    _check_cone(mu, edges)
     if torque_scale <= 0:
         raise ValueError(f"torque_scale must be > 0, got {torque_scale}")
     if torsional_friction < 0:
@@ -143,13 +135,39 @@ def contact_wrenches(points, normals, *, mu=0.5, edges=8, torque_scale=1.0, tors
     if len(points) != len(normals):
         raise ValueError(f"points and normals differ in length: {len(points)} != {len(normals)}")
     arm = points - (np.zeros(3) if center is None else np.asarray(center, dtype=np.float64))
-    forces = friction_cone(normals, mu, edges)
-    if torsional_friction > 0:
-        forces = np.concatenate([forces, normals[:, None], normals[:, None]], axis=1)
-    torques = np.cross(arm[:, None], forces)
-    if torsional_friction > 0:
-        torques[:, -2:] += torsional_friction * np.array([1.0, -1.0])[None, :, None] * normals[:, None]
-    return np.concatenate([forces, torques / torque_scale], axis=2)
+    return _wrenches(arm, normals, float(mu), int(edges), float(torque_scale), float(torsional_friction))
+
+
+@njit(cache=True)
+def _wrenches(arms, normals, mu, edges, torque_scale, gamma):
+    """(n, k, 6) wrenches of unit inward ``normals`` (n, 3) at lever ``arms`` (n, 3) from the
+    torque reference; see :func:`contact_wrenches`. Scalar loops: a grasp's few contacts."""
+    count = len(normals)
+    extra = 2 if gamma > 0 else 0
+    wrenches = np.empty((count, edges + extra, 6))
+    for contact in range(count):
+        x, y, z = normals[contact, 0], normals[contact, 1], normals[contact, 2]
+        # Duff et al.'s branchless basis: continuous except across z = 0
+        sign = 1.0 if z >= 0 else -1.0
+        a = -1.0 / (sign + z)
+        b = x * y * a
+        first = (1 + sign * x * x * a, sign * b, -sign * x)
+        second = (b, sign + y * y * a, -y)
+        for edge in range(edges + extra):
+            force = wrenches[contact, edge, :3]
+            if edge < edges:
+                angle = 2.0 * np.pi * edge / edges
+                cos, sin = np.cos(angle), np.sin(angle)
+                for axis in range(3):
+                    force[axis] = normals[contact, axis] + mu * (cos * first[axis] + sin * second[axis])
+            else:
+                force[:] = normals[contact]
+            ax, ay, az = arms[contact, 0], arms[contact, 1], arms[contact, 2]
+            torque = (ay * force[2] - az * force[1], az * force[0] - ax * force[2], ax * force[1] - ay * force[0])
+            spin = 0.0 if edge < edges else (gamma if edge == edges else -gamma)
+            for axis in range(3):
+                wrenches[contact, edge, 3 + axis] = (torque[axis] + spin * normals[contact, axis]) / torque_scale
+    return wrenches
 
 
 def _hull(wrenches):

@@ -234,6 +234,19 @@ def test_link_distances_match_a_dense_brute_force_and_never_undershoot():
     assert checked >= 5
 
 
+@pytest.mark.parametrize("name", sorted(HANDS))
+def test_every_link_point_lies_in_the_cover_sphere_that_culls_it(name):
+    """A measure skips the points of a cover sphere far from the object, bounding them by the
+    sphere's clearance less its reach: that bound holds only if each point is within its
+    sphere's reach, on its own link, and the reach is no more than the sphere's radius."""
+    model = hand_model(HANDS[name], spacing=0.003)
+    offset = np.linalg.norm(model.points - model.cover_centre[model.point_cover], axis=1)
+    assert np.all(offset <= model.cover_reach[model.point_cover] + 1e-12)
+    assert np.array_equal(model.piece_link[model.cover_piece[model.point_cover]], model.point_link)
+    assert np.all(model.cover_reach <= model.cover_radius * (1 + 1e-9))
+    assert np.all(np.diff(model.point_cover) >= 0)  # grouped by sphere, so a sphere's points are a range
+
+
 def test_a_point_above_a_face_beside_an_obtuse_edge_is_at_its_plane_distance():
     """A mesh link's hull has obtuse edges (a 10 deg crease here): a point 0.1 mm above one face,
     0.2 mm from the crease, is off both planes, yet its nearest point is on the face, 0.1 mm
