@@ -17,9 +17,11 @@ class Tolerances:
     """Wrenches whose smallest singular value is below this x the largest span less than 6D:
     epsilon 0 (:mod:`pipeline.quality`)."""
     hull_inside: float = 1e-12
-    """An origin nearer than this to a hull facet counts as on the hull: epsilon 0 (quality)."""
+    """An origin nearer than this to a hull facet counts as on the hull: epsilon 0 (quality,
+    :mod:`pipeline.expanding_hull`)."""
     hull_beyond: float = 1e-10
-    """A wrench must lie this far past a facet's plane to count as beyond it (quality's grown hull)."""
+    """A wrench must lie this far past a facet's plane to count as beyond it (quality's grown
+    hulls, :mod:`pipeline.expanding_hull`)."""
     hull_sliver: float = 1e-9
     """A polytope facet whose vertex is nearer than this x its edge's length to the span of the
     facet's other edges is a sliver: epsilon is then found with Qhull (:mod:`pipeline.expanding_hull`)."""
