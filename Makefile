@@ -37,7 +37,7 @@ run: setup
 	@echo "        dvc metrics show | dvc plots show (writes dvc_plots/index.html) | artefacts in data/<object>/<scale>/"
 
 test: setup
-	python -m pytest -q
+	python -m pytest -q -n 2 --dist loadfile
 
 lint: setup
 	ruff check pipeline stages tests
