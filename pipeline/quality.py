@@ -12,7 +12,7 @@ for a hundred wrenches: a polytope of a few wrenches is grown until its nearest 
 wrench beyond it. A polytope inside the whole hull is never farther from the origin than the
 whole one's facets, and a facet with no wrench beyond it supports the whole hull, so that facet's
 distance is the whole hull's epsilon, exactly (to rounding). The polytope grows by one wrench at
-a time (:func:`pipeline.expanding_hull.nearest_facet`, 6-8x faster than Qhull on the engine's
+a time (:func:`pipeline.expanding_hull.nearest_facet`, 9-10x faster than Qhull on the engine's
 grasps); where it meets a degenerate facet, Qhull's hulls of a few extreme wrenches are grown
 instead, several wrenches a round (:func:`_nearest_facet`).
 
