@@ -104,3 +104,27 @@ def test_each_stage_module_calls_the_tables_function():
         assert direct or via_module, entry.name
         assert callable(dag.function(entry))
         assert not entry.section or entry.section in SECTIONS
+
+
+def test_matrix_entries_take_their_code_deps_through_one_fingerprint(tmp_path):
+    import hashlib
+    import json
+
+    import yaml
+
+    for entry in dag.STAGES:
+        stages = yaml.safe_load(dag.dvc_file(entry.name))["stages"]
+        code = stages["code"]
+        assert code["deps"] == list(dag.code_deps(entry.name)) + ["pipeline/dag.py"]
+        assert code["outs"] == [{dag.fingerprint_path(entry.name): {"cache": False}}]
+        deps = stages[entry.name]["deps"]
+        assert deps[0] == dag.fingerprint_path(entry.name) and not any(
+            path.startswith(("pipeline/", "stages/")) for path in deps
+        )
+    # the fingerprint is each source file's md5, so an edit to any of them changes it
+    out = tmp_path / "code.json"
+    dag.main(["--fingerprint", "simulate", str(out)])
+    written = json.loads(out.read_text())
+    assert written["stage"] == "simulate" and list(written["files"]) == sorted(dag.code_deps("simulate"))
+    quality = (dag.ROOT / "pipeline" / "quality.py").read_bytes()
+    assert written["files"]["pipeline/quality.py"] == hashlib.md5(quality).hexdigest()
