@@ -187,6 +187,17 @@ class ObjectMesh:
             return np.zeros(0, bool)
         return self.scene.compute_occupancy(self._tensor(points)).numpy() > 0.5
 
+    def exit_distance(self, points, directions):
+        """(n,) distance (m) from each of the (n, 3) points inside the mesh along its (n, 3) unit
+        direction to the mesh's first triangle (exact ray casts, float32); 0 where no triangle
+        is hit (a point outside, on a ray that misses)."""
+        points = np.asarray(points, np.float64).reshape(-1, 3)
+        if not len(points):
+            return np.zeros(0)
+        rays = np.concatenate([points, np.asarray(directions, np.float64).reshape(-1, 3)], axis=1)
+        hit = self.scene.cast_rays(self._tensor(rays))["t_hit"].numpy().astype(np.float64)
+        return np.where(np.isfinite(hit), hit, 0.0)
+
     def signed_distance(self, points):
         """(n,) exact signed distances (m), negative inside."""
         points = np.asarray(points, np.float64).reshape(-1, 3)

@@ -195,8 +195,15 @@ def _feature_hits(
             low[axis] = max(int(np.floor((centres[row, axis] - reach[row] - origin[axis]) / size)), 0)
             high[axis] = min(int(np.floor((centres[row, axis] + reach[row] - origin[axis]) / size)), shape[axis] - 1)
         for i in range(low[0], high[0] + 1):
+            di = _beyond(centres[row, 0] - origin[0], i, size)
             for j in range(low[1], high[1] + 1):
+                dj = di + _beyond(centres[row, 1] - origin[1], j, size)
+                if dj > reach[row] * reach[row]:
+                    continue
                 for k in range(low[2], high[2] + 1):
+                    # a cell whose box lies beyond the reach holds no feature within it
+                    if dj + _beyond(centres[row, 2] - origin[2], k, size) > reach[row] * reach[row]:
+                        continue
                     cell = (i * shape[1] + j) * shape[2] + k
                     for position in range(starts[cell], starts[cell + 1]):
                         feature = items[position]
@@ -234,6 +241,13 @@ def _feature_hits(
                             normals[hits, axis] = planes[piece, face, axis]
                         hits += 1
     return rows[:hits], found[:hits], gaps[:hits], normals[:hits]
+
+
+@njit(cache=True)
+def _beyond(coordinate, index, size):
+    """Squared distance along one axis from ``coordinate`` to cell ``index`` of ``size`` (0 inside)."""
+    gap = max(index * size - coordinate, coordinate - (index + 1) * size, 0.0)
+    return gap * gap
 
 
 @njit(cache=True)
@@ -314,14 +328,16 @@ def _minimum_at(out, index, values):
             out[index[position]] = values[position]
 
 
-def collides(mesh, model, poses, *, overlap=None):
+def collides(mesh, model, poses, *, overlap=None, along=None):
     """The hand at each of the (n, L, 4, 4) link poses overlaps the object: a link's surface
     point inside the mesh, or a mesh vertex deeper than ``overlap`` (m) inside a link's convex
     piece (default :attr:`pipeline.tol.Tolerances.overlap_m`). A link swallowed whole by the
     object has its points inside; an object part swallowed by a link has its vertices inside.
 
     Returns (n,) bool, and (n,) how far (m) each overlapping hand can certainly be translated
-    and still overlap (from the distance grid's bounds on points inside; 0 if none is known)."""
+    and still overlap (0 if none is known): in any direction, from the distance grid's bounds on
+    points inside; with ``along`` (n, 3) unit directions, translated along them, at least as far
+    as the nearest exit of the mesh of any point found inside (exact ray casts)."""
     overlap = tol.overlap_m if overlap is None else overlap
     count, total = len(model.links), len(poses)
     flat = poses.reshape(-1, 4, 4)
@@ -353,6 +369,12 @@ def collides(mesh, model, poses, *, overlap=None):
     check = np.flatnonzero((low <= 0) & ~inside & ~hit[rows[pair]])
     inside[check] = mesh.inside(world[check])
     hit[rows[pair[inside]]] = True
+    if along is not None and inside.any():
+        # a point inside stays inside until its ray along the move leaves the mesh (a margin
+        # for the casts' float32)
+        owner = rows[pair[inside]]
+        exit_m = mesh.exit_distance(world[inside], along[owner]) - 1e-6
+        _minimum_at(deepest, owner, -exit_m)
     unsure = unsure[~hit[rows[unsure]]]  # the vertex test only where no link point is inside
     pair, _, signed, _ = _vertex_side(mesh, model, flat, slot, *_covers(mesh, model, flat, slot, unsure), 0.0)
     hit[rows[pair[signed < -overlap]]] = True

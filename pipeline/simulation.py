@@ -243,7 +243,8 @@ class GraspEngine:
         pending = np.arange(len(placed))
         while len(pending):
             offset = steps[pending] * step
-            hit, depth = collides(self.mesh, self.model, _shifted(placed[pending], offset, direction[pending]))
+            moved = _shifted(placed[pending], offset, direction[pending])
+            hit, depth = collides(self.mesh, self.model, moved, along=-direction[pending])
             found[pending[~hit]] = offset[~hit]
             # offsets that leave a link point certainly inside are skipped, not tried
             steps[pending] += np.maximum(1, np.ceil(depth / step - 1e-9)).astype(np.int64)

@@ -99,6 +99,41 @@ def test_no_closed_hand_overlaps_the_object(name):
         assert not overlapping.any(), [closed[k].touched for k in np.flatnonzero(overlapping)]
 
 
+def test_exit_distance_along_a_ray_from_inside_a_box():
+    box = GraspEngine(surface("primitive:box", extents=(0.1, 0.06, 0.04)), HANDS["parallel_jaw"]).mesh
+    points = [[0.0, 0.0, 0.0], [0.02, 0.0, 0.0], [0.02, 0.0, 0.0], [0.0, 0.01, 0.0]]
+    directions = [[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], np.array([0.0, 1.0, 1.0]) / np.sqrt(2)]
+    # to the faces x = 0.05, x = -0.05, z = 0.02; and from y = 0.01 at 45 degrees to z = 0.02
+    np.testing.assert_allclose(box.exit_distance(points, directions), [0.05, 0.07, 0.02, 0.02 * np.sqrt(2)], atol=1e-7)
+
+
+@pytest.mark.parametrize("name", ["armar3", "barrett"])
+def test_the_retreat_skips_only_offsets_that_still_collide(name):
+    """The retreat jumps over offsets by the exit distance of link points inside the object: at
+    every offset it skips (sampled across each jump), the hand still overlaps the object."""
+    from pipeline.kinematics import base_poses
+    from pipeline.proximity import collides
+    from pipeline.simulation import _shifted
+
+    rng = np.random.default_rng(3)
+    mug = surface("primitive:mug")
+    engine = GraspEngine(mug, HANDS[name])
+    count = 24
+    low, high = mug.vertices.min(axis=0), mug.vertices.max(axis=0)
+    grasp = low + (high - low) * rng.random((count, 3))
+    approach = rng.normal(size=(count, 3))
+    approach /= np.linalg.norm(approach, axis=1, keepdims=True)
+    orient = np.cross(approach, rng.normal(size=(count, 3)))
+    q = np.array([[HANDS[name].preshape(None)[joint] for joint in engine.model.joints]] * count)
+    placed = link_poses(engine.model, base_poses(HANDS[name], grasp, approach, orient), q)
+    hit, depth = collides(engine.mesh, engine.model, placed, along=-approach)
+    _, grid_depth = collides(engine.mesh, engine.model, placed)
+    assert hit.sum() >= count // 2 and (depth >= grid_depth).all() and (depth > grid_depth + 0.005).any()
+    for fraction in (0.3, 0.7, 0.999):
+        moved = _shifted(placed[hit], fraction * depth[hit], approach[hit])
+        assert collides(engine.mesh, engine.model, moved)[0].all(), fraction
+
+
 def test_franka_hand_from_pybullet_data_closes_on_a_cube_with_both_fingers():
     cube = surface("primitive:box", extents=(0.04, 0.04, 0.04))
     franka = HANDS["franka"]
