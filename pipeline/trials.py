@@ -27,12 +27,12 @@ contacts (``contacts.parquet``): one row per contact; ``trial`` (row number in t
 """
 
 import concurrent.futures
-import multiprocessing
 import os
 
 import numpy as np
 import pandas as pd
 
+from . import pool
 from .arrays import vectors
 from .simulation import OUTCOMES, check_simulable, run_chunk, start_worker, stop_worker
 
@@ -115,14 +115,13 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
         finally:
             stop_worker()
         return results
-    # spawn: the parent may hold threads (open3d, OpenMP) that fork would copy mid-flight
     with concurrent.futures.ProcessPoolExecutor(
         min(workers, len(chunks)),
-        multiprocessing.get_context("spawn"),
+        pool.context(),
         initializer=start_worker,
         initargs=(surface, hands, settings),
-    ) as pool:
-        done = pool.map(run_chunk, [chunk[1] for chunk in chunks], [chunk[2] for chunk in chunks])
+    ) as executor:
+        done = executor.map(run_chunk, [chunk[1] for chunk in chunks], [chunk[2] for chunk in chunks])
         for (number, _, _), chunk in zip(chunks, done):
             results[number] += chunk
             if progress:

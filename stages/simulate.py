@@ -12,7 +12,9 @@ from pipeline.stage_io import one_line_errors, params, progress_bar, stage_args,
 
 @one_line_errors
 def main(argv=None):
-    # imported here: trial workers are spawned and re-import this module, and need none of it
+    from pipeline import pool
+
+    pool.start()  # the trial workers' server imports the engine while this process reads its inputs
     from pipeline.artefacts import SurfaceSamples, read_table, write_table
     from pipeline.hands import get_hand
     from pipeline.recording import log_candidates, log_trials, record_stage

@@ -251,6 +251,22 @@ def test_run_trials_keeps_table_order_across_workers():
     assert [r.epsilon for r in serial[0]] == [r.epsilon for r in parallel[0]]
 
 
+def _imported_before_any_work():
+    import sys
+
+    return [name in sys.modules for name in ("pipeline.simulation", "open3d", "trimesh")]
+
+
+def test_trial_workers_start_with_the_engine_already_imported():
+    import concurrent.futures
+
+    from pipeline import pool
+
+    pool.start()
+    with concurrent.futures.ProcessPoolExecutor(1, pool.context()) as executor:
+        assert executor.submit(_imported_before_any_work).result() == [True, True, True]
+
+
 def test_hand_pictures_show_the_hand_open_and_closed_on_the_object(tmp_path):
     from PIL import Image
 

@@ -1,0 +1,28 @@
+"""The trial worker processes' start: a fork server that imports the trial engine once.
+
+Spawned workers would each import numpy, open3d and numba before their first trial (about 3 s a
+process here, every ``simulate`` stage). Workers forked from a server that has only imported
+them start at once; the server itself is a fresh single-threaded process that has run nothing,
+so no thread of a used library (open3d's ray casting, OpenMP) is copied mid-flight, as forking
+the caller could. :func:`start` launches it early, so that its imports overlap the caller's.
+"""
+
+import multiprocessing
+
+#: what the server imports before forking workers (the engine's lazy imports included)
+PRELOAD = ["pipeline.simulation", "open3d", "trimesh"]
+
+
+def context():
+    """The ``multiprocessing`` context of the trial workers."""
+    ctx = multiprocessing.get_context("forkserver")
+    ctx.set_forkserver_preload(PRELOAD)
+    return ctx
+
+
+def start():
+    """Start the fork server now (it imports :data:`PRELOAD` while the caller goes on)."""
+    from multiprocessing import forkserver
+
+    context()
+    forkserver.ensure_running()
