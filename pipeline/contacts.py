@@ -54,7 +54,7 @@ def region_corners(points, normals, *, coplanar_deg=5.0, merge_m=None, max_corne
         return np.arange(len(points))
     merge_m = tol.contact_merge_m if merge_m is None else merge_m
     # candidates are compared after rounding: several measures can find the same touching point
-    rounded = np.round(np.c_[points, normals], tol.point_decimals)
+    rounded = np.round(np.concatenate((points, normals), axis=1), tol.point_decimals)
     corners = _corners(points, normals, rounded, np.cos(np.radians(coplanar_deg)), merge_m, tol.straight_turn)
     return np.sort(_farthest(points, corners, max_corners))
 

@@ -183,10 +183,9 @@ class GraspEngine:
             return results
         model = self.model
         start = time.perf_counter()
-        q = np.array(
-            [[self.hand.preshape(name)[joint] for joint in model.joints] for name in np.asarray(preshapes)[rows]],
-            dtype=np.float64,
-        ).reshape(len(rows), len(model.joints))
+        names = np.asarray(preshapes, dtype=object)[rows]
+        shapes = {name: [self.hand.preshape(name)[joint] for joint in model.joints] for name in set(names)}
+        q = np.array([shapes[name] for name in names], dtype=np.float64).reshape(len(rows), len(model.joints))
         base = base_poses(self.hand, grasp[rows], approach[rows], orient[rows])
         placed = link_poses(model, base, q)
         start = self._lap("place", start)
@@ -203,7 +202,8 @@ class GraspEngine:
         q, stops, steps = self._close(base, q)
         poses = link_poses(model, base, q)
         start = self._lap("closing", start)
-        # the closed hands' touching pairs, measured all at once
+        # the closed hands' touching pairs, measured all at once; exact up to the tolerance is
+        # all they need (a link farther than it touches nothing)
         links = np.flatnonzero(model.link_radius > 0)
         owner = np.repeat(np.arange(len(rows)), len(links))
         distance, touches = measure(
@@ -212,7 +212,7 @@ class GraspEngine:
             poses,
             owner,
             np.tile(links, len(rows)),
-            near=self.near,
+            near=self.settings.contact_tolerance_m,
             tolerance=self.settings.contact_tolerance_m,
         )
         distance = distance.reshape(len(rows), len(links))
