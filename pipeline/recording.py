@@ -176,20 +176,23 @@ def log_trials(stream, root, surface, hand, trials, contacts, *, settings=None):
     colours = np.array([OUTCOME_COLOURS.get(str(outcome), (0, 0, 0)) for outcome in trials.outcome], np.uint8)
     approach_start = base + trials.retract_m.to_numpy()[:, None] * vectors(trials, "approach")
     model = hand_model(hand, spacing=settings.get("link_point_spacing_m", 0.003))
+    # joints in the model's order: the closed ones from the trials (the hand's limits order), the
+    # open ones the default preshape; a joint neither names stays at 0
     open_joints = hand.preshape()
-    for name, positions in (("approach", approach_start), ("retracted", base), ("closed", base)):
-        boxes = [
-            hand_boxes(
-                model,
-                positions[number],
-                quaternion[number],
-                dict(zip(hand.limits, trials.joints.iloc[number])) if name == "closed" else open_joints,
-            )
-            for number in np.flatnonzero(placed)
-        ]
+    opened = np.tile([open_joints.get(joint, 0.0) for joint in model.joints], (int(placed.sum()), 1))
+    limits = list(hand.limits)
+    recorded = np.array(trials.joints[placed].tolist(), np.float64).reshape(len(opened), len(limits))
+    closed = np.column_stack(
+        [recorded[:, limits.index(joint)] if joint in limits else np.zeros(len(opened)) for joint in model.joints]
+    ).reshape(len(opened), len(model.joints))
+    for name, positions, joints in (
+        ("approach", approach_start, opened),
+        ("retracted", base, opened),
+        ("closed", base, closed),
+    ):
+        centres, rotations, _ = hand_boxes(model, positions[placed], quaternion[placed], joints)
         links = len(model.box_half)
-        centres = np.concatenate([box[0] for box in boxes]) if boxes else np.zeros((0, 3))
-        rotations = np.concatenate([box[1] for box in boxes]) if boxes else np.zeros((0, 3, 3))
+        centres, rotations = centres.reshape(-1, 3), rotations.reshape(-1, 3, 3)
         # the closed hand solid, its approach and retracted poses as outlines behind it
         fill = rr.components.FillMode.Solid if name == "closed" else rr.components.FillMode.MajorWireframe
         stream.log(f"{path}/hand/{name}", rr.Boxes3D.from_fields(fill_mode=fill), static=True)
@@ -198,7 +201,7 @@ def log_trials(stream, root, surface, hand, trials, contacts, *, settings=None):
             indexes=steps,
             columns=rr.Boxes3D.columns(
                 centers=centres,
-                half_sizes=np.tile(model.box_half, (len(boxes), 1)),
+                half_sizes=np.tile(model.box_half, (len(opened), 1)),
                 quaternions=Rotation.from_matrix(rotations).as_quat() if len(rotations) else np.zeros((0, 4)),
                 colors=np.repeat(colours[placed], links, axis=0),
             ).partition(np.where(placed, links, 0)),

@@ -439,17 +439,19 @@ def grade(regions, model, settings, *, centre, torque_scale, **pose):
     )
 
 
-def hand_boxes(model, base_position, base_orientation, joints):
-    """Every collision shape's drawing box of the hand ``model`` with its URDF base at
-    ``base_position`` (m) and ``base_orientation`` (quaternion x y z w) and ``joints`` (name ->
-    value): world centres (S, 3), rotations (S, 3, 3) and half extents (S, 3)."""
-    base = np.eye(4)
-    base[:3, :3] = Rotation.from_quat(base_orientation).as_matrix()
-    base[:3, 3] = base_position
-    q = np.array([[joints.get(name, 0.0) for name in model.joints]])
-    poses = link_poses(model, base[None], q)[0][model.box_link]
-    centres = np.einsum("sij,sj->si", poses[:, :3, :3], model.box_centre) + poses[:, :3, 3]
-    return centres, poses[:, :3, :3] @ model.box_rotation, model.box_half
+def hand_boxes(model, base_positions, base_orientations, joints):
+    """Every collision shape's drawing box of the hands ``model`` with their URDF bases at
+    ``base_positions`` (n, 3) m and ``base_orientations`` (n, 4) quaternions x y z w, and
+    ``joints`` (n, J) in ``model.joints`` order: world centres (n, S, 3), rotations
+    (n, S, 3, 3) and half extents (S, 3)."""
+    base = np.tile(np.eye(4), (len(base_positions), 1, 1))
+    if len(base):
+        base[:, :3, :3] = Rotation.from_quat(base_orientations).as_matrix()
+    base[:, :3, 3] = base_positions
+    poses = link_poses(model, base, np.asarray(joints, np.float64).reshape(len(base), len(model.joints)))
+    poses = poses[:, model.box_link]
+    centres = np.einsum("nsij,sj->nsi", poses[..., :3, :3], model.box_centre) + poses[..., :3, 3]
+    return centres, poses[..., :3, :3] @ model.box_rotation, model.box_half
 
 
 # A worker process's engines, one per hand, built on first use (pipeline.trials runs the pool;

@@ -11,10 +11,12 @@ from conftest import complete_params
 from rerun.chunk import RrdReader
 
 from pipeline.hands import get_hand
+from pipeline.kinematics import hand_model
 from pipeline.logbook import file_digest, mcap_log, read_log
 from pipeline.params import Params, SampleParams, SimulateParams
 from pipeline.plan import run_chain, summary
 from pipeline.recording import record_chain, rerun_recording
+from pipeline.simulation import hand_boxes
 
 HANDS = ["armar3", "barrett"]
 
@@ -77,6 +79,17 @@ def test_rrd_holds_every_sphere_candidate_and_one_step_per_trial(recorded):
         assert closed.num_rows == len(own)
         sizes = {len(value) for value in closed.column("Boxes3D:half_sizes").to_pylist()}
         assert sizes == {len(get_hand(hand).links)}
+        # the last trial's closed boxes: its base pose and joints (by name) through the kinematics
+        model, last = hand_model(get_hand(hand)), own.iloc[-1]
+        named = dict(zip(get_hand(hand).limits, last.joints))
+        centres, _, _ = hand_boxes(
+            model,
+            [[last.base_x, last.base_y, last.base_z]],
+            [[last.base_qx, last.base_qy, last.base_qz, last.base_qw]],
+            [[named.get(joint, 0.0) for joint in model.joints]],
+        )
+        drawn = dict(zip(closed.column("trial").to_pylist(), closed.column("Boxes3D:centers").to_pylist()))
+        np.testing.assert_allclose(np.array(drawn[len(own) - 1]), centres[0], atol=1e-6)
         joints = rows_of(path, f"/capsule/trials/{hand}/joints")
         by_step = dict(zip(joints.column("trial").to_pylist(), joints.column("joints_rad").to_pylist()))
         assert by_step[len(own) - 1] == pytest.approx(list(own.joints.iloc[-1]))
