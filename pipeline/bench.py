@@ -61,7 +61,7 @@ def _measure(surface, method, repeats):
     return float(np.median(times)), peak, spheres
 
 
-def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, trials=100, only=None, out=print):
+def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, trials=512, only=None, out=print):
     """Print (and optionally save) the benchmark tables (``only``: one of medial, symmetry,
     trials, recording, batch); returns {table: rows}."""
     tables = {}
@@ -192,7 +192,7 @@ def trial_bench_chain():
     return artefacts, len(mesh.faces)
 
 
-def run_trial_bench(*, trials=100, reference_trials=30, out=print):
+def run_trial_bench(*, trials=512, reference_trials=30, out=print):
     """Grasp trials per second per hand on a ~17k-triangle duck, the engine
     (:mod:`pipeline.simulation`, batched) beside the one it replaced (:mod:`pipeline.legacy_trial`,
     one trial at a time; box-link hands only) on the same random MAT candidates, one core; where

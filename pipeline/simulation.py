@@ -8,8 +8,9 @@ candidate (P_g, P_d, P_o, preshape):
 1. place the hand: grasp centre at P_g, approach axis along P_d, wrap axis along P_o, open in
    the preshape;
 2. retreat along -P_d in ``retract_step_m`` steps until the hand is clear of the object (no link
-   point inside the mesh, no mesh vertex inside a link); not clear within ``retract_max_m``:
-   ``collision``;
+   point inside the mesh, no mesh vertex inside a link), jumping over the steps where a link
+   point found inside is still inside (its exact ray along the retreat has not left the mesh);
+   not clear within ``retract_max_m``: ``collision``;
 3. come back toward the object in steps of at most ``approach_step_m`` (larger while the measured
    clearance allows) until the first link is within ``contact_tolerance_m``, never past where
    the hand was placed (OpenRAVE's approach to contact; the paper's Simox port skipped it);
@@ -454,8 +455,8 @@ def hand_boxes(model, base_positions, base_orientations, joints):
     return centres, poses[..., :3, :3] @ model.box_rotation, model.box_half
 
 
-# A worker process's engines, one per hand, built on first use (pipeline.trials runs the pool;
-# these live here so that a spawned worker imports only this module's dependencies).
+# A worker process's engines, one per hand, built on first use (pipeline.trials runs the pool,
+# pipeline.pool forks its workers from a server that has imported this module).
 _WORKER = {}
 
 
