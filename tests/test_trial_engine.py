@@ -15,6 +15,15 @@ from pipeline.simulation import GraspEngine, check_simulable
 from test_simulation import surface
 
 
+def random_candidates(shape, count, rng):
+    """``count`` random candidates in ``shape``'s bounding box: P_g (n, 3), unit P_d, P_o."""
+    low, high = shape.vertices.min(axis=0), shape.vertices.max(axis=0)
+    grasp = low + (high - low) * rng.random((count, 3))
+    approach = rng.normal(size=(count, 3))
+    approach /= np.linalg.norm(approach, axis=1, keepdims=True)
+    return grasp, approach, np.cross(approach, rng.normal(size=(count, 3)))
+
+
 def plate():
     return surface("primitive:box", extents=(0.2, 0.1, 0.006))
 
@@ -79,11 +88,7 @@ def test_no_closed_hand_overlaps_the_object(name):
     rng = np.random.default_rng(8)
     for shape in (surface("primitive:box", extents=(0.05, 0.03, 0.08)), surface("primitive:mug")):
         count = 16
-        low, high = shape.vertices.min(axis=0), shape.vertices.max(axis=0)
-        grasp = low + (high - low) * rng.random((count, 3))
-        approach = rng.normal(size=(count, 3))
-        approach /= np.linalg.norm(approach, axis=1, keepdims=True)
-        orient = np.cross(approach, rng.normal(size=(count, 3)))
+        grasp, approach, orient = random_candidates(shape, count, rng)
         engine = GraspEngine(shape, HANDS[name])
         closed = [
             result
@@ -119,11 +124,7 @@ def test_the_retreat_skips_only_offsets_that_still_collide(name):
     mug = surface("primitive:mug")
     engine = GraspEngine(mug, HANDS[name])
     count = 24
-    low, high = mug.vertices.min(axis=0), mug.vertices.max(axis=0)
-    grasp = low + (high - low) * rng.random((count, 3))
-    approach = rng.normal(size=(count, 3))
-    approach /= np.linalg.norm(approach, axis=1, keepdims=True)
-    orient = np.cross(approach, rng.normal(size=(count, 3)))
+    grasp, approach, orient = random_candidates(mug, count, rng)
     q = np.array([[HANDS[name].preshape(None)[joint] for joint in engine.model.joints]] * count)
     placed = link_poses(engine.model, base_poses(HANDS[name], grasp, approach, orient), q)
     hit, depth = collides(engine.mesh, engine.model, placed, along=-approach)
