@@ -9,7 +9,7 @@ reruns the stage. ``python -m pipeline.dag`` rewrites ``dag/<stage>/dvc.yaml`` f
 A matrix stage's code deps go through one small ``code`` stage per file, whose output
 ``dag/<stage>/code.json`` (the md5 of each source file) is the matrix entries' one code dep: DVC
 rewrites a file's whole dvc.lock after every stage it runs, and twenty source files listed in
-each of 56 entries made that rewrite 3.2 s a stage (0.6-1.6 s with the fingerprint).
+each of 56 entries made that rewrite up to 3.2 s a stage (0.3-1.6 s with the fingerprint).
 """
 
 import ast
