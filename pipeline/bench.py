@@ -25,7 +25,8 @@ from .legacy_trial import GraspWorld
 from .sampling import sample_object
 from .simulation import GraspEngine
 from .symmetry import classify
-from .trials import CHUNK, default_workers, run_trials
+from .pool import default_workers
+from .trials import CHUNK, run_trials
 
 BOX_HALF = np.array([0.05, 0.03, 0.01])
 CAPSULE_RADIUS, CAPSULE_HALF_LENGTH = 0.02, 0.05

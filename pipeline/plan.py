@@ -14,7 +14,7 @@ from .objects import RepairWarning, source_key
 from .params import Params
 from .stage_io import warning_line
 from .symmetry import CLASSES, INTERIOR
-from .trials import default_workers
+from .pool import default_workers
 from .trials import summary as trial_summary
 
 #: file of each artefact a chain run makes, by its key in :func:`run_chain`'s result: the stage

@@ -8,9 +8,15 @@ the caller could. :func:`start` launches it early, so that its imports overlap t
 """
 
 import multiprocessing
+import os
 
 #: what the server imports before forking workers (the engine's lazy imports included)
 PRELOAD = ["pipeline.simulation", "open3d", "trimesh"]
+
+
+def default_workers(workers):
+    """``workers`` processes, or every core the process may use when 0."""
+    return workers if workers > 0 else len(os.sched_getaffinity(0))
 
 
 def context():

@@ -27,7 +27,6 @@ contacts (``contacts.parquet``): one row per contact; ``trial`` (row number in t
 """
 
 import concurrent.futures
-import os
 
 import numpy as np
 import pandas as pd
@@ -130,11 +129,6 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
             if progress:
                 progress(len(chunk), total)
     return results
-
-
-def default_workers(workers):
-    """``workers`` processes, or every core the process may use when 0."""
-    return workers if workers > 0 else len(os.sched_getaffinity(0))
 
 
 def simulate(

@@ -12,16 +12,18 @@ from pipeline.stage_io import one_line_errors, params, progress_bar, stage_args,
 
 @one_line_errors
 def main(argv=None):
-    from pipeline import pool
-
-    pool.start()  # the trial workers' server imports the engine while this process reads its inputs
-    from pipeline.artefacts import SurfaceSamples, read_table, write_table
-    from pipeline.hands import get_hand
-    from pipeline.recording import log_candidates, log_trials, record_stage
-    from pipeline.trials import default_workers, simulate, summary
+    from pipeline.pool import default_workers, start
 
     args = stage_args(__doc__, "surface", "candidates", "hand", "trials", "contacts", argv=argv)
     config = params()
+    workers = default_workers(config.simulate.workers)
+    if workers > 1:
+        start()  # the trial workers' server imports the engine while this process reads its inputs
+    from pipeline.artefacts import SurfaceSamples, read_table, write_table
+    from pipeline.hands import get_hand
+    from pipeline.recording import log_candidates, log_trials, record_stage
+    from pipeline.trials import simulate, summary
+
     used = {"seed": config.seed, "hand": args.hand, **dataclasses.asdict(config.simulate)}
     with stage_run(
         args,
@@ -41,7 +43,7 @@ def main(argv=None):
                 spheres_per_object=config.simulate.spheres_per_object,
                 baseline_trials=config.simulate.baseline_trials,
                 seed=config.seed,
-                workers=default_workers(config.simulate.workers),
+                workers=workers,
                 settings=config.simulate.world_settings(),
                 progress=progress,
             )
