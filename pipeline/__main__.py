@@ -243,9 +243,14 @@ def _objects(args):
     text = replace_objects(Path(args.write).read_text(), entries)
     text, figures = figure_objects_following(text, list(entries), source=args.write)
     atomic_write(args.write, lambda stream: stream.write(text.encode()))
-    print(
-        f"wrote {len(entries)} objects into {args.write} (report.figure_objects: {', '.join(figures)}): run `dvc repro`"
-    )
+    print(f"wrote {len(entries)} objects into {args.write} (report.figure_objects: {', '.join(figures)})")
+    from .dag import ROOT, write_dvc_files
+
+    if Path(args.write).resolve() == ROOT / "params.yaml":  # the DAG's own params: its objects' stage files
+        changed = write_dvc_files()
+        print(f"rewrote {len(changed)} stage files under {ROOT / 'dag'}: run `dvc repro`")
+    else:
+        print("with these objects in the project's params.yaml, run `python -m pipeline.dag`, then `dvc repro`")
 
 
 def _command_params(args):

@@ -3,13 +3,15 @@
 Each :class:`Stage` names its artefacts, the params DVC tracks for it and its module in
 ``stages/``; its code deps are that module's ``pipeline`` imports, followed transitively (every
 ``import`` statement, function-level ones included), so that editing any module a stage can run
-reruns the stage. ``python -m pipeline.dag`` rewrites ``dag/<stage>/dvc.yaml`` from this table;
-``python -m pipeline.dag --check`` only lists the files that differ, and fails if any does.
+reruns the stage. ``python -m pipeline.dag`` rewrites the stage files from this table and the
+objects of ``params.yaml``; ``python -m pipeline.dag --check`` only lists the files that differ
+(or should not be there), and fails if any does.
 
-A matrix stage's code deps go through one small ``code`` stage per file, whose output
-``dag/<stage>/code.json`` (the md5 of each source file) is the matrix entries' one code dep: DVC
-rewrites a file's whole dvc.lock after every stage it runs, and twenty source files listed in
-each of 56 entries made that rewrite up to 3.2 s a stage (0.3-1.6 s with the fingerprint).
+The files: ``dag/<stage>/dvc.yaml`` holds the stage's ``code`` stage, whose output
+``dag/<stage>/code.json`` (the md5 of each source file) is the runs' one code dep, and
+``dag/<stage>/<object>/dvc.yaml`` the object's runs (a matrix over scales, and hands). DVC
+rewrites a file's whole dvc.lock after every stage it runs (a ruamel round trip: 1.7 s for the
+56 entries of one file per stage), so each lock holds only one object's two to four entries.
 """
 
 import ast
@@ -200,79 +202,110 @@ def write_fingerprint(name, path):
     atomic_write(path, lambda stream: stream.write(text.encode()))
 
 
-def _path(artefact):
-    run = "data/${item.object}/${item.scale}"
+def _path(artefact, name):
+    run = f"data/{name}/${{item.scale}}"
     return f"{run}/${{item.hand}}/{ARTEFACTS[artefact]}" if artefact in PER_HAND else f"{run}/{ARTEFACTS[artefact]}"
 
 
-def _run_folder(entry, root):
-    return f"{root}/${{item.object}}/${{item.scale}}" + ("/${item.hand}" if entry.per_hand else "")
+def _run_folder(entry, root, name):
+    return f"{root}/{name}/${{item.scale}}" + ("/${item.hand}" if entry.per_hand else "")
+
+
+def _header(what):
+    return [
+        f"# {what}, written by `python -m pipeline.dag` from pipeline/dag.py and the",
+        "# objects of params.yaml: edit those, not this file. Paths are relative to the repository root.",
+    ]
 
 
 def dvc_file(name):
-    """The text of ``dag/<name>/dvc.yaml``."""
+    """The text of ``dag/<name>/dvc.yaml``: the stage's ``code`` stage (the report's run)."""
     entry = stage(name)
-    lines = [
-        f"# Stage `{name}` of the DAG, written by `python -m pipeline.dag` from pipeline/dag.py: edit the",
-        "# table there, not this file. One file per stage, so that each keeps its own small dvc.lock (DVC",
-        "# rewrites a file's whole lock after every stage it runs). Paths are relative to the repository root.",
-        "vars:",
-        "  - ../../params.yaml",
-        "stages:",
-    ]
-    if entry is not REPORT:  # the matrix entries' code deps, as one small file
-        lines += [
-            "  code:",
-            "    wdir: ../..",
-            f"    cmd: python -m pipeline.dag --fingerprint {name} {fingerprint_path(name)}",
-            "    deps:",
-        ]
-        lines += [f"      - {path}" for path in code_deps(name) + ("pipeline/dag.py",)]
-        lines += ["    outs:", f"      - {fingerprint_path(name)}:", "          cache: false"]
-    lines.append(f"  {name}:")
     if entry is REPORT:
+        lines = _header("Stage `report` of the DAG") + ["vars:", "  - ../../params.yaml", "stages:", "  report:"]
         lines += ["    wdir: ../..", "    cmd: python -m stages.report data report --log logs/report.mcap"]
         outs = ["report/report.md", "report/trials.parquet", "report/figures", "report/plots", "logs/report.mcap"]
-        deps = list(code_deps(name)) + ["data"]
-    else:
-        lines += ["    matrix:", "      object: ${objects}", "      scale: ${scales}"]
-        if entry.per_hand:
-            lines.append("      hand: ${candidates.hands}")
-        logs, data = _run_folder(entry, "logs"), _run_folder(entry, "data")
-        argv = (
-            [_path(item) for item in entry.inputs + entry.recorded]
-            + [f"${{item.{arg}}}" for arg in entry.args]
-            + [_path(item) for item in entry.outputs]
-            + [f"--timing {data}/timing/{name}.json", f"--log {logs}/{name}.mcap"]
-        )
-        outs = [_path(item) for item in entry.outputs] + [f"{data}/timing/{name}.json", f"{logs}/{name}.mcap"]
-        if entry.recording:
-            argv.append(f"--rrd {logs}/{entry.recording} --recording-id ${{item.object}}-${{item.scale}}")
-            outs.append(f"{logs}/{entry.recording}")
-        lines += ["    wdir: ../..", "    cmd: >-", f"      python -m stages.{name}"] + [f"      {arg}" for arg in argv]
-        deps = [fingerprint_path(name)] + [_path(item) for item in entry.inputs + entry.recorded]
-    lines += ["    deps:"] + [f"      - {path}" for path in deps]
-    lines += ["    params:"] + [f"      - {key}" for key in entry.params]
-    lines += ["    outs:"] + [f"      - {path}" for path in outs]
-    if entry is REPORT:
-        lines += ["    metrics:", "      - report/metrics.json"]
+        lines += ["    deps:"] + [f"      - {path}" for path in list(code_deps(name)) + ["data"]]
+        lines += ["    params:"] + [f"      - {key}" for key in entry.params]
+        lines += ["    outs:"] + [f"      - {path}" for path in outs]
+        return "\n".join(lines + ["    metrics:", "      - report/metrics.json"]) + "\n"
+    lines = _header(f"The code fingerprint of stage `{name}` (its runs: dag/{name}/<object>/dvc.yaml)")
+    lines += [
+        "stages:",
+        "  code:",
+        "    wdir: ../..",
+        f"    cmd: python -m pipeline.dag --fingerprint {name} {fingerprint_path(name)}",
+        "    deps:",
+    ]
+    lines += [f"      - {path}" for path in code_deps(name) + ("pipeline/dag.py",)]
+    lines += ["    outs:", f"      - {fingerprint_path(name)}:", "          cache: false"]
     return "\n".join(lines) + "\n"
 
 
+def object_dvc_file(name, object_name):
+    """The text of ``dag/<name>/<object_name>/dvc.yaml``: stage ``name``'s runs of one object."""
+    entry = stage(name)
+    lines = _header(f"Stage `{name}` of object `{object_name}`")
+    lines += ["vars:", "  - ../../../params.yaml", "stages:", f"  {name}:", "    matrix:", "      scale: ${scales}"]
+    if entry.per_hand:
+        lines.append("      hand: ${candidates.hands}")
+    logs, data = _run_folder(entry, "logs", object_name), _run_folder(entry, "data", object_name)
+    item = {"object": object_name, "scale": "${item.scale}", "hand": "${item.hand}"}
+    argv = (
+        [_path(artefact, object_name) for artefact in entry.inputs + entry.recorded]
+        + [item[arg] for arg in entry.args]
+        + [_path(artefact, object_name) for artefact in entry.outputs]
+        + [f"--timing {data}/timing/{name}.json", f"--log {logs}/{name}.mcap"]
+    )
+    outs = [_path(artefact, object_name) for artefact in entry.outputs]
+    outs += [f"{data}/timing/{name}.json", f"{logs}/{name}.mcap"]
+    if entry.recording:
+        argv.append(f"--rrd {logs}/{entry.recording} --recording-id {object_name}-${{item.scale}}")
+        outs.append(f"{logs}/{entry.recording}")
+    lines += ["    wdir: ../../..", "    cmd: >-", f"      python -m stages.{name}"] + [f"      {arg}" for arg in argv]
+    deps = [fingerprint_path(name)] + [_path(artefact, object_name) for artefact in entry.inputs + entry.recorded]
+    lines += ["    deps:"] + [f"      - {path}" for path in deps]
+    params = [key.replace("${item.object}", object_name) for key in entry.params]
+    lines += ["    params:"] + [f"      - {key}" for key in params]
+    lines += ["    outs:"] + [f"      - {path}" for path in outs]
+    return "\n".join(lines) + "\n"
+
+
+def object_stage_file(name, object_name):
+    """Repository-relative path of stage ``name``'s file for object ``object_name``."""
+    return f"dag/{name}/{object_name}/dvc.yaml"
+
+
+def stage_files(objects):
+    """``{repository-relative path: text}`` of every stage file for the object names ``objects``."""
+    files = {f"dag/{entry.name}/dvc.yaml": dvc_file(entry.name) for entry in STAGES + (REPORT,)}
+    for entry in STAGES:
+        files |= {object_stage_file(entry.name, name): object_dvc_file(entry.name, name) for name in objects}
+    return files
+
+
 def write_dvc_files(root=ROOT, *, check=False):
-    """Write ``dag/<stage>/dvc.yaml`` of every stage under ``root``; with ``check``, write nothing
-    and return the paths whose committed text differs (missing files included)."""
-    stale = []
-    for entry in STAGES + (REPORT,):
-        path = Path(root) / "dag" / entry.name / "dvc.yaml"
-        text = dvc_file(entry.name)
-        if path.is_file() and path.read_text() == text:
-            continue
-        stale.append(path)
-        if not check:
+    """Write every stage file under ``root`` for the objects of ``root/params.yaml`` and remove the
+    folders (stage file and lock) of objects no longer listed; with ``check``, change nothing and
+    return the paths that differ (missing and no longer listed files included)."""
+    from .params import load_params
+
+    root = Path(root)
+    files = stage_files(load_params(root / "params.yaml").objects)
+    stale = [
+        root / path for path, text in files.items() if not (root / path).is_file() or (root / path).read_text() != text
+    ]
+    gone = [path for path in sorted(root.glob(object_stage_file("*", "*"))) if str(path.relative_to(root)) not in files]
+    if not check:
+        for path in stale:
             path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(text)
-    return stale
+            path.write_text(files[str(path.relative_to(root))])
+        for path in gone:
+            for leftover in (path, path.with_name("dvc.lock")):
+                leftover.unlink(missing_ok=True)
+            if not any(path.parent.iterdir()):
+                path.parent.rmdir()
+    return stale + gone
 
 
 def main(argv=None):
@@ -290,7 +323,8 @@ def main(argv=None):
         return
     stale = write_dvc_files(check=args.check)
     for path in stale:
-        print(f"{'out of date' if args.check else 'wrote'}: {path.relative_to(ROOT)}")
+        done = "removed" if not path.exists() else "wrote"
+        print(f"{'out of date' if args.check else done}: {path.relative_to(ROOT)}")
     if args.check and stale:
         print("run `python -m pipeline.dag` to rewrite them", file=sys.stderr)
         raise SystemExit(1)

@@ -22,7 +22,8 @@ def run_dir(data, name, scale, hand=None):
 def main(argv=None):
     from pipeline import report
     from pipeline.artefacts import atomic_write, json_bytes, read_table, write_table
-    from pipeline.errors import ArtefactError
+    from pipeline.dag import ROOT, object_stage_file
+    from pipeline.errors import ArtefactError, BadParamsError
 
     args = stage_args(__doc__, "data", "out", argv=argv)
     config = params()
@@ -33,6 +34,11 @@ def main(argv=None):
     tables, timings = {}, []
     for name, scale, hand in runs:
         path = run_dir(args.data, name, scale, hand) / "trials.parquet"
+        if not path.is_file() and not (ROOT / object_stage_file("simulate", name)).is_file():
+            raise BadParamsError(
+                f"params.yaml: object {name!r} has no stage files; run `python -m pipeline.dag` to write them "
+                "(make run does), then `dvc repro`"
+            )
         if not path.is_file():
             raise ArtefactError(f"{path}: missing; run `dvc repro` (the report needs every simulate stage)")
         tables[(name, scale, hand)] = read_table(path)

@@ -115,6 +115,20 @@ def test_plan_on_bad_mesh_is_one_line(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+def test_report_on_an_object_without_stage_files_says_to_write_them(tmp_path):
+    # params.yaml gained an object but `python -m pipeline.dag` did not run: DVC has no stage of it
+    params = complete_params({})
+    params["objects"] = {"newcomer": {"source": "primitive:box"}}
+    params["report"]["figure_objects"] = []
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
+    result = run([sys.executable, "-m", "stages.report", "data", "report"], tmp_path)
+    assert result.returncode == 2 and result.stderr == (
+        "error: params.yaml: object 'newcomer' has no stage files; run `python -m pipeline.dag` to write them "
+        "(make run does), then `dvc repro`\n"
+    )
+    assert not (tmp_path / "report").exists()
+
+
 TINY_OBJECTS, TINY_SCALES, TINY_HANDS = ("capsule",), (1.0, 0.5), ("armar3", "barrett")
 TINY_RUNS = [(name, scale, hand) for name in TINY_OBJECTS for scale in TINY_SCALES for hand in TINY_HANDS]
 
@@ -156,11 +170,17 @@ def tiny_project(tmp_path):
     return params
 
 
+def run_name(address):
+    """``simulate@box-1.0-armar3`` of ``dag/simulate/box/dvc.yaml:simulate@1.0-armar3`` (``code``,
+    ``report`` of the stages' own files)."""
+    path, name = address.split(":")
+    parts = path.split("/")
+    return f"{parts[1]}@{parts[2]}-{name.split('@')[1]}" if len(parts) == 4 else name
+
+
 def ran_stages(result):
-    """Names (``simulate@box-1.0-armar3``) of the stages a dvc command ran, without their dvc.yaml."""
-    return {
-        line.split("'")[1].split(":")[-1] for line in result.stdout.splitlines() if line.startswith("Running stage")
-    }
+    """Names (``simulate@box-1.0-armar3``) of the stages a dvc command ran."""
+    return {run_name(line.split("'")[1]) for line in result.stdout.splitlines() if line.startswith("Running stage")}
 
 
 @pytest.mark.slow
@@ -268,7 +288,7 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
 
     refresh_fingerprints()
     status = run(dvc + ["status", "--json"], tmp_path)
-    stale = {key.split(":")[-1] for key in json.loads(status.stdout)}
+    stale = {run_name(key) for key in json.loads(status.stdout)}
     quality.write_text(original)
     refresh_fingerprints()
     items = {
@@ -400,6 +420,7 @@ def test_plan_batch_and_dvc_make_the_same_artefacts(tmp_path):
     params["simulate"].update(spheres_per_object=3, baseline_trials=3)
     params["report"]["figure_objects"] = ["block"]
     (project / "params.yaml").write_text(yaml.safe_dump(params))
+    assert run([sys.executable, "-m", "pipeline.dag"], project).returncode == 0  # the new object's stage files
     repro = run([sys.executable, "-m", "dvc", "repro"], project)
     assert repro.returncode == 0, repro.stderr + repro.stdout
     planned = run(

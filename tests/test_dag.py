@@ -113,11 +113,10 @@ def test_matrix_entries_take_their_code_deps_through_one_fingerprint(tmp_path):
     import yaml
 
     for entry in dag.STAGES:
-        stages = yaml.safe_load(dag.dvc_file(entry.name))["stages"]
-        code = stages["code"]
+        code = yaml.safe_load(dag.dvc_file(entry.name))["stages"]["code"]
         assert code["deps"] == list(dag.code_deps(entry.name)) + ["pipeline/dag.py"]
         assert code["outs"] == [{dag.fingerprint_path(entry.name): {"cache": False}}]
-        deps = stages[entry.name]["deps"]
+        deps = yaml.safe_load(dag.object_dvc_file(entry.name, "duck"))["stages"][entry.name]["deps"]
         assert deps[0] == dag.fingerprint_path(entry.name) and not any(
             path.startswith(("pipeline/", "stages/")) for path in deps
         )
@@ -128,3 +127,39 @@ def test_matrix_entries_take_their_code_deps_through_one_fingerprint(tmp_path):
     assert written["stage"] == "simulate" and list(written["files"]) == sorted(dag.code_deps("simulate"))
     quality = (dag.ROOT / "pipeline" / "quality.py").read_bytes()
     assert written["files"]["pipeline/quality.py"] == hashlib.md5(quality).hexdigest()
+
+
+def test_each_object_has_its_own_stage_files_written_from_params(tmp_path):
+    import yaml
+
+    from pipeline.params import defaults
+
+    params = defaults()
+    params["objects"] = {"cube": {"source": "primitive:box"}, "ring": {"source": "primitive:torus"}}
+    params["report"]["figure_objects"] = []
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
+    written = dag.write_dvc_files(tmp_path)
+    per_object = {f"dag/{entry.name}/{name}/dvc.yaml" for entry in dag.STAGES for name in ("cube", "ring")}
+    assert {str(path.relative_to(tmp_path)) for path in written} == per_object | {
+        f"dag/{entry.name}/dvc.yaml" for entry in dag.STAGES + (dag.REPORT,)
+    }
+    assert dag.write_dvc_files(tmp_path, check=True) == []
+    simulate = yaml.safe_load((tmp_path / "dag/simulate/ring/dvc.yaml").read_text())["stages"]["simulate"]
+    assert simulate["matrix"] == {"scale": "${scales}", "hand": "${candidates.hands}"}
+    assert simulate["deps"][1:] == [
+        "data/ring/${item.scale}/surface.npz",
+        "data/ring/${item.scale}/${item.hand}/candidates.parquet",
+    ]
+    sample = yaml.safe_load((tmp_path / "dag/sample/cube/dvc.yaml").read_text())["stages"]["sample"]
+    assert (
+        sample["params"] == ["seed", "sample", "objects.cube"] and "stages.sample cube ${item.scale}" in sample["cmd"]
+    )
+    # an object dropped from params.yaml: --check lists its files, the rewrite removes them with their locks
+    (tmp_path / "dag/sample/ring/dvc.lock").write_text("schema: '2.0'\n")
+    del params["objects"]["ring"]
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
+    ring = {tmp_path / f"dag/{entry.name}/ring/dvc.yaml" for entry in dag.STAGES}
+    assert set(dag.write_dvc_files(tmp_path, check=True)) == ring and all(path.is_file() for path in ring)
+    assert set(dag.write_dvc_files(tmp_path)) == ring
+    assert not any((tmp_path / f"dag/{entry.name}/ring").exists() for entry in dag.STAGES)
+    assert (tmp_path / "dag/sample/cube/dvc.yaml").is_file() and dag.write_dvc_files(tmp_path, check=True) == []
