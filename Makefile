@@ -32,8 +32,7 @@ $(VENV)/.synced: $(UV) pyproject.toml uv.lock
 	touch $@
 
 run: setup
-	python -m pipeline.dag  # the stage files of params.yaml's objects
-	dvc repro
+	python -m pipeline.repro  # dvc repro, the objects in parallel lanes (pipeline/repro.py)
 	@echo "report: $(CURDIR)/report/report.md (figures in report/figures/, every trial in report/trials.parquet)"
 	@echo "        dvc metrics show | dvc plots show (writes dvc_plots/index.html) | artefacts in data/<object>/<scale>/"
 

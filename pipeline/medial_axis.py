@@ -18,7 +18,6 @@ field", The Visual Computer 28, 2012. Amenta, Choi, Kolluri, "The power crust", 
 
 import numpy as np
 from pykdtree.kdtree import KDTree
-from scipy.spatial import Delaunay
 
 from .arrays import group_rows, unit_rows
 from .artefacts import MedialAxis, content_key
@@ -220,6 +219,8 @@ def voronoi_poles(points, normals):
     normals = as_points("normals", normals)
     if len(points) < 5:
         raise BadInputError("points: need at least 5 for a Delaunay tetrahedralisation")
+    from scipy.spatial import Delaunay  # here: scipy.spatial costs 0.5 s to import, for this method only
+
     # joggled input: exact Delaunay of the coplanar samples of a box face stalls Qhull (45 s at 20k)
     simplices = Delaunay(points, qhull_options="QJ").simplices.astype(np.int64)
     corner = points[simplices]

@@ -181,9 +181,8 @@ class CandidatesParams:
 class SimulateParams:
     """Grasp trials (stage ``simulate``, paper IV; see :mod:`pipeline.simulation`)."""
 
-    spheres_per_object: int = 50
-    """Random spheres (with candidates) per hand; all their candidates are tried (the paper: 200;
-    50 keeps the default run's trials within about 10 minutes on 2 cores)."""
+    spheres_per_object: int = 200
+    """Random spheres (with candidates) per hand; all their candidates are tried (the paper's 200)."""
     baseline_trials: int = -1
     """Surface-normal baseline trials per hand: -1 = as many as the MAT trials, 0 = none."""
     mu: float = 0.5

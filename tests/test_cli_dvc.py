@@ -179,8 +179,10 @@ def run_name(address):
 
 
 def ran_stages(result):
-    """Names (``simulate@box-1.0-armar3``) of the stages a dvc command ran."""
-    return {run_name(line.split("'")[1]) for line in result.stdout.splitlines() if line.startswith("Running stage")}
+    """Names (``simulate@box-1.0-armar3``) of the stages a dvc command (or pipeline.repro's lanes,
+    whose lines start with ``[object]``) ran."""
+    lines = [line.split("] ", 1)[-1] if line.startswith("[") else line for line in result.stdout.splitlines()]
+    return {run_name(line.split("'")[1]) for line in lines if line.startswith("Running stage")}
 
 
 @pytest.mark.slow
@@ -188,7 +190,7 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     tiny_project(tmp_path)
     dvc = [sys.executable, "-m", "dvc"]
     git = ["git", "-c", "user.name=t", "-c", "user.email=t@t"]
-    first = run(dvc + ["repro"], tmp_path)
+    first = run([sys.executable, "-m", "pipeline.repro", "--jobs", "2"], tmp_path)  # what make run does
     assert first.returncode == 0, first.stderr + first.stdout
     runs, per_scale = TINY_RUNS, len(TINY_OBJECTS) * len(TINY_SCALES)
     # (the code stages' fingerprints came with the copy: the code has not changed)

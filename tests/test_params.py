@@ -21,7 +21,7 @@ def test_repository_params_equal_the_defaults():
     for name in SECTIONS:
         assert getattr(loaded, name) == getattr(default, name), name
     assert (loaded.seed, loaded.record) == (default.seed, default.record)
-    assert loaded.simulate.spheres_per_object == 50 and set(loaded.report.figure_objects) <= set(loaded.objects)
+    assert loaded.simulate.spheres_per_object == 200 and set(loaded.report.figure_objects) <= set(loaded.objects)
 
 
 def test_printed_defaults_are_a_complete_file(tmp_path):

@@ -1,0 +1,161 @@
+"""``dvc repro`` of the whole DAG with the objects' chains in parallel lanes (``make run``).
+
+DVC runs one stage at a time, and every stage before ``simulate`` uses one core, as does DVC's
+own work between stages: on two cores half the machine would wait through most of the run. But
+DVC releases its repository lock while a stage's command runs and guards each stage's deps and
+outs with read/write locks, so several ``dvc repro`` processes may run stages whose files do not
+overlap, and the objects do not share files until the report. So:
+
+1. ``python -m pipeline.dag``: the stage files of params.yaml's objects;
+2. ``dvc repro -s`` of the ``code`` stages (the fingerprints every lane reads);
+3. ``jobs`` lanes, each taking the next object and running ``dvc --wait-for-lock repro -s`` of
+   its stage files in DAG order up to ``candidates`` (a stage that is up to date is skipped, as
+   in ``dvc repro``), while one more process compiles the trial engine's numba kernels into
+   their cache (:func:`compile_kernels`): every trial process would otherwise compile them
+   itself until one has written the cache, four at once on a fresh clone (3.5 min);
+4. the same lanes over the objects' ``simulate`` stages;
+5. ``dvc repro``: the report, and DVC's own check that nothing else is left to run.
+
+Every run is the one ``dvc repro`` would make (the stages are deterministic and do not depend
+on what runs beside them), so the artefacts and dvc.lock files are the same; only the order
+differs. The lanes' output is printed line by line, each line after its object's name; the
+first lane that fails stops the others from starting new objects, and the command fails with
+its object's output.
+"""
+
+import os
+import subprocess
+import sys
+import threading
+
+from .dag import ROOT, STAGES, object_stage_file, write_dvc_files
+
+DVC = [sys.executable, "-m", "dvc"]
+
+
+def lane_targets(object_name, stages=STAGES):
+    """Repository-relative stage files of one object for ``stages``, in DAG order."""
+    return [object_stage_file(entry.name, object_name) for entry in stages]
+
+
+def compile_kernels(hands):
+    """One trial of each hand (names) on a 4 cm cube, so that numba compiles the engine's kernels
+    into its cache (or finds them there)."""
+    import dataclasses
+
+    import numpy as np
+
+    from .errors import PipelineError
+    from .hands import get_hand
+    from .params import SampleParams
+    from .sampling import sample_object
+    from .simulation import GraspEngine
+
+    cube = sample_object(
+        "primitive:box",
+        shape={"extents": (0.04, 0.04, 0.04)},
+        rng=np.random.default_rng(0),
+        **{**dataclasses.asdict(SampleParams()), "count": 2000},
+    )
+    for name in hands:
+        try:
+            hand = get_hand(name)
+        except PipelineError:  # its candidates stage says so, in one line
+            continue
+        GraspEngine(cube, hand).run(
+            np.array([[0.0, 0.0, 0.02]]), np.array([[0.0, 0.0, -1.0]]), np.array([[1.0, 0.0, 0.0]]), [None]
+        )
+
+
+def _run(command, prefix, lock, cores=None):
+    """Run ``command`` in the repository (on the CPU set ``cores``, if given), printing its
+    output lines after ``prefix``; the exit status and the output's last lines."""
+    process = subprocess.Popen(
+        command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, errors="replace"
+    )
+    if cores:  # before DVC starts a stage: the stages inherit it
+        os.sched_setaffinity(process.pid, cores)
+    tail = []
+    for line in process.stdout:
+        tail = (tail + [line.rstrip()])[-40:]
+        with lock:
+            print(f"{prefix}{line.rstrip()}", flush=True)
+    return process.wait(), tail
+
+
+def run_lanes(objects, jobs, stages=STAGES):
+    """Reproduce every object's ``stages``, ``jobs`` objects at a time; the names of the objects
+    that failed, with their output's last lines (empty when all succeeded).
+
+    With no more lanes than cores each lane keeps to a core of its own: ``simulate`` then runs
+    its trials in its own process (``workers: 0`` is every core the process may use), the
+    lanes beside it using the other cores, instead of starting worker processes that would
+    compete with them."""
+    queue, failed, lock = list(objects), {}, threading.Lock()
+    width = max(map(len, objects), default=0)
+    lanes = max(1, min(jobs, len(objects)))
+    available = sorted(os.sched_getaffinity(0))
+    cores = [{available[lane]} if lanes <= len(available) else None for lane in range(lanes)]
+
+    def lane(number):
+        while True:
+            with lock:
+                if failed or not queue:
+                    return
+                name = queue.pop(0)
+            command = DVC + ["--wait-for-lock", "repro", "-s"] + lane_targets(name, stages)
+            status, tail = _run(command, f"[{name:<{width}}] ", lock, cores[number])
+            if status:
+                with lock:
+                    failed[name] = tail
+
+    threads = [threading.Thread(target=lane, args=(number,)) for number in range(lanes)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    return failed
+
+
+def main(argv=None):
+    import argparse
+
+    from .errors import PipelineError
+    from .params import load_params
+    from .pool import default_workers
+
+    parser = argparse.ArgumentParser(prog="python -m pipeline.repro", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--jobs", type=int, default=0, help="lanes (objects at once); 0 = every core")
+    args = parser.parse_args(argv)
+    try:
+        params = load_params(ROOT / "params.yaml")
+        for path in write_dvc_files():
+            print(f"{'wrote' if path.exists() else 'removed'}: {path.relative_to(ROOT)}")
+    except PipelineError as error:
+        raise SystemExit(f"error: {error}") from None
+    objects, jobs, lock = list(params.objects), default_workers(args.jobs), threading.Lock()
+    if _run(DVC + ["repro", "-s"] + [f"dag/{entry.name}/dvc.yaml" for entry in STAGES], "", lock)[0]:
+        raise SystemExit(1)
+    kernels = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            f"from pipeline.repro import compile_kernels; compile_kernels({list(params.candidates.hands)!r})",
+        ],
+        cwd=ROOT,
+    )
+    failed = run_lanes(objects, jobs, STAGES[:-1])
+    if kernels.wait():
+        raise SystemExit("error: compiling the trial engine's kernels failed (see above)")
+    failed = failed or run_lanes(objects, jobs, STAGES[-1:])
+    if failed:
+        for name, tail in failed.items():
+            print(f"\n{name} failed; its last lines:\n" + "\n".join(tail), file=sys.stderr)
+        raise SystemExit(
+            f"error: the stages of {', '.join(failed)} failed (see above); `dvc repro` reruns what is left"
+        )
+    raise SystemExit(_run(DVC + ["repro"], "", lock)[0])
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,61 @@
+"""The parallel lanes of ``python -m pipeline.repro``: objects at once, each object's stage files
+in DAG order, and the first failure stops new objects (DVC itself replaced by a script)."""
+
+import os
+import sys
+
+from pipeline import dag, repro
+
+
+def fake_dvc(tmp_path, monkeypatch):
+    """A ``dvc`` that logs (object, start, end) of each lane command and fails on 'broken'."""
+    log = tmp_path / "log.txt"
+    script = tmp_path / "dvc.py"
+    script.write_text(
+        "import os, sys, time\n"
+        "targets = sys.argv[4:]\n"
+        "name = targets[0].split('/')[2]\n"
+        "start = time.monotonic()\n"
+        "time.sleep(0.4)\n"
+        "print('ran', ' '.join(targets))\n"
+        "cores = ','.join(map(str, sorted(os.sched_getaffinity(0))))\n"
+        f"open({str(log)!r}, 'a').write(f'{{name}} {{start}} {{time.monotonic()}} {{cores}}\\n')\n"
+        "sys.exit(1 if name == 'broken' else 0)\n"
+    )
+    monkeypatch.setattr(repro, "DVC", [sys.executable, str(script)])
+    return log
+
+
+def read_log(log):
+    """{object: (start, end, cores)} of the fake dvc's log."""
+    rows = [line.split() for line in log.read_text().splitlines()]
+    return {name: (float(start), float(end), cores) for name, start, end, cores in rows}
+
+
+def test_lanes_run_objects_at_once_each_in_dag_order(tmp_path, monkeypatch, capsys):
+    log = fake_dvc(tmp_path, monkeypatch)
+    assert repro.lane_targets("duck") == [f"dag/{entry.name}/duck/dvc.yaml" for entry in dag.STAGES]
+    assert repro.run_lanes(["a", "b", "c", "d"], jobs=2) == {}
+    spans = read_log(log)
+    assert sorted(spans) == ["a", "b", "c", "d"]
+    # two lanes: the first two objects run at once, and no more than two ever do
+    assert spans["a"][0] < spans["b"][1] and spans["b"][0] < spans["a"][1]
+    for name, (start, _, _) in spans.items():
+        assert sum(other[0] <= start < other[1] for other in spans.values()) <= 2, name
+    # each lane keeps to a core of its own (when there are two), so the stages do not compete
+    machine = sorted(os.sched_getaffinity(0))
+    if len(machine) >= 2:
+        assert spans["a"][2] != spans["b"][2] and {cores for _, _, cores in spans.values()} <= set(map(str, machine))
+    else:
+        assert {cores for _, _, cores in spans.values()} == {",".join(map(str, machine))}
+    out = capsys.readouterr().out.splitlines()
+    assert f"[c] ran {' '.join(repro.lane_targets('c'))}" in out
+
+
+def test_first_failed_lane_stops_new_objects(tmp_path, monkeypatch):
+    log = fake_dvc(tmp_path, monkeypatch)
+    failed = repro.run_lanes(["broken", "b", "c", "d", "e"], jobs=2)
+    assert list(failed) == ["broken"] and failed["broken"][-1].startswith("ran dag/sample/broken/dvc.yaml")
+    # the lane beside it finishes its object; nobody starts the remaining ones
+    ran = set(read_log(log))
+    assert "broken" in ran and "b" in ran and not {"d", "e"} & ran
