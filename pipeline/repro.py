@@ -87,15 +87,15 @@ def run_lanes(objects, jobs, stages=STAGES):
     """Reproduce every object's ``stages``, ``jobs`` objects at a time; the names of the objects
     that failed, with their output's last lines (empty when all succeeded).
 
-    With no more lanes than cores each lane keeps to a core of its own: ``simulate`` then runs
-    its trials in its own process (``workers: 0`` is every core the process may use), the
-    lanes beside it using the other cores, instead of starting worker processes that would
-    compete with them."""
+    With no more lanes than cores each lane keeps to its share of them (one each when there are
+    as many lanes): ``simulate`` (``workers: 0``, every core the process may use) then runs its
+    trials on that share, in its own process when it is one core, instead of starting worker
+    processes that would compete with the lanes beside it."""
     queue, failed, lock = list(objects), {}, threading.Lock()
     width = max(map(len, objects), default=0)
     lanes = max(1, min(jobs, len(objects)))
     available = sorted(os.sched_getaffinity(0))
-    cores = [{available[lane]} if lanes <= len(available) else None for lane in range(lanes)]
+    cores = [set(available[lane::lanes]) if lanes <= len(available) else None for lane in range(lanes)]
 
     def lane(number):
         while True:
@@ -112,8 +112,13 @@ def run_lanes(objects, jobs, stages=STAGES):
     threads = [threading.Thread(target=lane, args=(number,)) for number in range(lanes)]
     for thread in threads:
         thread.start()
-    for thread in threads:
-        thread.join()
+    try:
+        for thread in threads:
+            thread.join()
+    except KeyboardInterrupt:  # the lanes' dvc got it too: let them stop, start no more
+        with lock:
+            queue.clear()
+        raise
     return failed
 
 
@@ -158,4 +163,7 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except KeyboardInterrupt:
+        raise SystemExit("interrupted; `make run` again reruns only what is left") from None
