@@ -271,6 +271,11 @@ def object_dvc_file(name, object_name):
     return "\n".join(lines) + "\n"
 
 
+def stage_file(name):
+    """Repository-relative path of stage ``name``'s own file (its ``code`` stage; the report)."""
+    return f"dag/{name}/dvc.yaml"
+
+
 def object_stage_file(name, object_name):
     """Repository-relative path of stage ``name``'s file for object ``object_name``."""
     return f"dag/{name}/{object_name}/dvc.yaml"
@@ -278,7 +283,7 @@ def object_stage_file(name, object_name):
 
 def stage_files(objects):
     """``{repository-relative path: text}`` of every stage file for the object names ``objects``."""
-    files = {f"dag/{entry.name}/dvc.yaml": dvc_file(entry.name) for entry in STAGES + (REPORT,)}
+    files = {stage_file(entry.name): dvc_file(entry.name) for entry in STAGES + (REPORT,)}
     for entry in STAGES:
         files |= {object_stage_file(entry.name, name): object_dvc_file(entry.name, name) for name in objects}
     return files

@@ -23,12 +23,14 @@ first lane that fails stops the others from starting new objects, and the comman
 its object's output.
 """
 
+import collections
 import os
 import subprocess
 import sys
 import threading
 
-from .dag import ROOT, STAGES, object_stage_file, write_dvc_files
+from . import dag
+from .dag import ROOT, STAGES, object_stage_file, stage_file
 
 DVC = [sys.executable, "-m", "dvc"]
 
@@ -75,12 +77,12 @@ def _run(command, prefix, lock, cores=None):
     )
     if cores:  # before DVC starts a stage: the stages inherit it
         os.sched_setaffinity(process.pid, cores)
-    tail = []
+    tail = collections.deque(maxlen=40)
     for line in process.stdout:
-        tail = (tail + [line.rstrip()])[-40:]
+        tail.append(line.rstrip())
         with lock:
-            print(f"{prefix}{line.rstrip()}", flush=True)
-    return process.wait(), tail
+            print(f"{prefix}{tail[-1]}", flush=True)
+    return process.wait(), list(tail)
 
 
 def run_lanes(objects, jobs, stages=STAGES):
@@ -134,12 +136,11 @@ def main(argv=None):
     args = parser.parse_args(argv)
     try:
         params = load_params(ROOT / "params.yaml")
-        for path in write_dvc_files():
-            print(f"{'wrote' if path.exists() else 'removed'}: {path.relative_to(ROOT)}")
+        dag.main([])  # the stage files of its objects
     except PipelineError as error:
         raise SystemExit(f"error: {error}") from None
     objects, jobs, lock = list(params.objects), default_workers(args.jobs), threading.Lock()
-    if _run(DVC + ["repro", "-s"] + [f"dag/{entry.name}/dvc.yaml" for entry in STAGES], "", lock)[0]:
+    if _run(DVC + ["repro", "-s"] + [stage_file(entry.name) for entry in STAGES], "", lock)[0]:
         raise SystemExit(1)
     kernels = subprocess.Popen(
         [
