@@ -277,7 +277,7 @@ class ReferenceEngine:
         for probe, position, rotation in self._placed(link):
             world = probe.surface @ rotation.T + position
             near = np.isfinite(self.vertex_tree.query(world, distance_upper_bound=tolerance + self.longest_edge)[0])
-            distance, closest, triangle, _ = self._closest_on_object(world[near], tolerance)
+            distance, closest, triangle = self._closest_on_object(world[near], tolerance)
             touching = distance <= tolerance
             gaps.append(distance[touching])
             points.append(closest[touching])
@@ -294,16 +294,15 @@ class ReferenceEngine:
         return np.concatenate(gaps), np.concatenate(points), np.concatenate(normals)
 
     def _closest_on_object(self, points, reach):
-        """Distance (n,), closest point (n, 3), triangle (n,) and whether the point is on the
-        triangle's edge or corner (n,) on the object of (n, 3) points known to be within ``reach``
-        plus the longest edge of a vertex (at a tie, the triangle whose normal best faces the
-        point)."""
+        """Distance (n,), closest point (n, 3) and triangle (n,) on the object of (n, 3) points
+        known to be within ``reach`` plus the longest edge of a vertex (at a tie, the triangle
+        whose normal best faces the point)."""
         if not len(points):
-            return np.zeros(0), np.zeros((0, 3)), np.zeros(0, int), np.zeros(0, bool)
+            return np.zeros(0), np.zeros((0, 3)), np.zeros(0, int)
         found = self.centroid_tree.query_ball_point(points, reach + self.longest_edge)
         owner = np.repeat(np.arange(len(points)), [len(row) for row in found])
         triangle = np.concatenate([np.asarray(row, int) for row in found])
-        closest, border = closest_on_triangles(points[owner], self.vertices[self.faces[triangle]])
+        closest = closest_on_triangles(points[owner], self.vertices[self.faces[triangle]])[0]
         offset = points[owner] - closest
         distance = np.linalg.norm(offset, axis=1)
         facing = np.einsum("ij,ij->i", offset, self.face_normals[triangle])
@@ -313,9 +312,8 @@ class ReferenceEngine:
             np.full(len(points), np.inf),
             np.zeros((len(points), 3)),
             np.zeros(len(points), int),
-            np.zeros(len(points), bool),
         )
-        for values, found in zip(result, (distance, closest, triangle, border)):
+        for values, found in zip(result, (distance, closest, triangle)):
             values[owner[first]] = found[first]
         return result
 
