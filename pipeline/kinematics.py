@@ -187,10 +187,11 @@ def _transform(poses, owner, local):
     return world
 
 
-def _edge_points(vertices, edges, spacing):
-    """Points along each edge (e, 2) of ``vertices`` (v, 3), ends included, at most ``spacing`` apart."""
+def _edge_points(vertices, edges, spacing, refine=1):
+    """Points along each edge (e, 2) of ``vertices`` (v, 3), ends included, at most ``spacing``
+    apart, each gap then split in ``refine`` (so the points at ``refine`` 1 are among them)."""
     starts, ends = vertices[edges[:, 0]], vertices[edges[:, 1]]
-    counts = np.maximum(np.ceil(np.linalg.norm(ends - starts, axis=1) / spacing).astype(int), 1)
+    counts = refine * np.maximum(np.ceil(np.linalg.norm(ends - starts, axis=1) / spacing).astype(int), 1)
     owner = np.repeat(np.arange(len(edges)), counts + 1)
     fraction = np.concatenate([np.linspace(0.0, 1.0, count + 1) for count in counts])
     points = starts[owner] + fraction[:, None] * (ends - starts)[owner]
@@ -218,9 +219,9 @@ def _shape_mesh(shape):
     return np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
 
 
-def _shape_points_and_hull(shape, spacing):
-    """Points (m, 3) on the edges of a shape (its corners and edges at ``spacing``) and its hull
-    vertices (h, 3), in its link frame.
+def _shape_points_and_hull(shape, spacing, refine=1):
+    """Points (m, 3) on the edges of a shape (its corners and edges at ``spacing``, split
+    ``refine`` times: :func:`_edge_points`) and its hull vertices (h, 3), in its link frame.
 
     Faces need no points: the distance from an object corner to a link face is the mesh-to-link
     side's, and an object edge or face is nearest a flat link face on the face's boundary."""
@@ -230,7 +231,7 @@ def _shape_points_and_hull(shape, spacing):
         edges = np.array(
             [(a, b) for a in range(8) for b in range(a + 1, 8) if np.count_nonzero(hull[a] != hull[b]) == 1]
         )
-        local = _edge_points(hull, edges, spacing)
+        local = _edge_points(hull, edges, spacing, refine)
     else:
         import trimesh
 
@@ -240,7 +241,7 @@ def _shape_points_and_hull(shape, spacing):
         sharp = mesh.face_adjacency_edges[mesh.face_adjacency_angles > np.radians(1.0)]
         boundary = trimesh.grouping.group_rows(mesh.edges_sorted, require_count=1)
         edges = np.concatenate([sharp, mesh.edges_sorted[boundary]]) if len(boundary) else sharp
-        local = np.concatenate([_edge_points(vertices, edges, spacing), vertices]) if len(edges) else vertices
+        local = np.concatenate([_edge_points(vertices, edges, spacing, refine), vertices]) if len(edges) else vertices
         local = np.unique(np.round(local, tol.point_decimals), axis=0)
         hull = vertices
     rotation, translation = shape.pose[:3, :3], shape.pose[:3, 3]
@@ -299,20 +300,25 @@ def _hull_edges(hull_points, planes):
 
 
 @functools.lru_cache(maxsize=16)
-def _cached_model(key, hand, spacing):
-    return _build(hand, spacing)
+def _cached_model(key, hand, spacing, refine):
+    return _build(hand, spacing, refine)
 
 
-def hand_model(hand, *, spacing=0.003):
-    """The :class:`HandModel` of ``hand`` (cached per hand and spacing).
+def hand_model(hand, *, spacing=0.003, refine=1):
+    """The :class:`HandModel` of ``hand`` (cached per hand, spacing and refinement).
 
     Parameters
     ----------
     hand : pipeline.hands.Hand
     spacing : float
         Largest distance (m) between neighbouring surface points of a collision shape.
+    refine : int
+        Each gap between those points split in this many (the trial's contact model: its
+        points are the closing model's and more between them, so a link that the closing
+        rule finds within the tolerance is still found so). Only ``points`` and their covers
+        differ from the model at ``refine`` 1.
     """
-    return _cached_model(hand.key(), _Frozen(hand), float(spacing))
+    return _cached_model(hand.key(), _Frozen(hand), float(spacing), int(refine))
 
 
 class _Frozen:
@@ -328,7 +334,7 @@ class _Frozen:
         return self.hand.key() == other.hand.key()
 
 
-def _build(frozen, spacing):
+def _build(frozen, spacing, refine):
     hand = frozen.hand
     robot = read_robot(hand)
     links = (robot.root,) + tuple(joint.child for joint in robot.joints)
@@ -365,7 +371,7 @@ def _build(frozen, spacing):
     points, point_link, pieces, piece_link, piece_points, boxes = [], [], [], [], [], []
     for name in links:
         for shape in robot.shapes[name]:
-            local, hull = _shape_points_and_hull(shape, spacing)
+            local, hull = _shape_points_and_hull(shape, spacing, refine)
             points.append(local)
             point_link.append(np.full(len(local), index[name]))
             piece_points.append(len(local))

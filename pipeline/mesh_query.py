@@ -42,6 +42,49 @@ def _edge_points(vertices, faces, face_normals, spacing):
     return points, normals / np.linalg.norm(normals, axis=1, keepdims=True)
 
 
+@dataclass(frozen=True)
+class Features:
+    """The mesh's own convex features, which a flat link face can be nearest: every vertex, and
+    points along every edge between faces that are not coplanar (an object edge under a link
+    face is nearest it somewhere along the edge). ``points`` (m, 3); ``normals`` (m, 3) orient
+    them (area-weighted at vertices, the two faces' mean along edges); ``cells``: the points
+    binned in cubic cells (origin, cell size, shape, CSR starts, point indices, :func:`_cells`),
+    for the link pieces' ball queries (:func:`pipeline.proximity._feature_hits`)."""
+
+    points: np.ndarray
+    normals: np.ndarray
+    cells: tuple
+
+
+def closest_on_triangles(points, triangles):
+    """(n, 3) closest points on (n, 3, 3) triangles to (n, 3) points, pairwise (Ericson,
+    *Real-Time Collision Detection*, 5.1.5: the Voronoi region of a corner, an edge or the
+    face), and (n,) bool: on a corner or an edge."""
+    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+    ab, ac = b - a, c - a
+    dot = lambda u, v: np.einsum("ij,ij->i", u, v)  # noqa: E731
+    d1, d2 = dot(ab, points - a), dot(ac, points - a)
+    d3, d4 = dot(ab, points - b), dot(ac, points - b)
+    d5, d6 = dot(ab, points - c), dot(ac, points - c)
+    vc, vb, va = d1 * d4 - d3 * d2, d5 * d2 - d1 * d6, d3 * d6 - d5 * d4
+    with np.errstate(divide="ignore", invalid="ignore"):
+        on_ab = a + (d1 / (d1 - d3))[:, None] * ab
+        on_ac = a + (d2 / (d2 - d6))[:, None] * ac
+        on_bc = b + ((d4 - d3) / ((d4 - d3) + (d5 - d6)))[:, None] * (c - b)
+        total = va + vb + vc
+        inside = a + (vb / total)[:, None] * ab + (vc / total)[:, None] * ac
+    regions = [
+        (d1 <= 0) & (d2 <= 0),
+        (d3 >= 0) & (d4 <= d3),
+        (vc <= 0) & (d1 >= 0) & (d3 <= 0),
+        (d6 >= 0) & (d5 <= d6),
+        (vb <= 0) & (d2 >= 0) & (d6 <= 0),
+        (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0),
+    ]
+    choices = [a, b, on_ab, c, on_ac, on_bc]
+    return np.select([region[:, None] for region in regions], choices, inside), np.any(regions, axis=0)
+
+
 FEATURE_CELL_M = 0.006  # the feature bins' side: a link cover's ball (about 1 cm) spans a few
 FEATURE_CELLS = 64  # the most bins along an axis: a 1 m object gets 1.6 cm bins, not 5 M of them
 
@@ -104,6 +147,10 @@ class Closest:
     normals: np.ndarray
     distances: np.ndarray
 
+    def at(self, rows):
+        """The answers of ``rows`` (an index or a mask)."""
+        return Closest(self.points[rows], self.triangles[rows], self.normals[rows], self.distances[rows])
+
 
 class ObjectMesh:
     """A closed triangle mesh (metres, object frame) with exact queries and a distance grid.
@@ -115,10 +162,14 @@ class ObjectMesh:
     grid_cells : int
         Grid nodes along the longest side of the bounding box (plus a margin of two cells).
     edge_spacing : float
-        Largest gap (m) between the mesh's feature points along an edge (see ``features``).
+        Largest gap (m) between the mesh's feature points along an edge (``features``, the
+        :class:`Features` a moving hand is measured against).
+    contact_edge_spacing : float, optional
+        The same for ``contact_features``, which the closed hand's contacts are measured
+        against (default ``edge_spacing``).
     """
 
-    def __init__(self, vertices, faces, *, grid_cells=40, edge_spacing=0.003):
+    def __init__(self, vertices, faces, *, grid_cells=40, edge_spacing=0.003, contact_edge_spacing=None):
         import open3d
 
         self._o3d = open3d
@@ -136,15 +187,12 @@ class ObjectMesh:
         for corner in range(3):
             np.add.at(accumulated, self.faces[:, corner], normals)
         vertex_normals = accumulated / np.maximum(np.linalg.norm(accumulated, axis=1, keepdims=True), 1e-300)
-        #: the mesh's own convex features, which a flat link face can be nearest: every vertex, and
-        #: points along every edge between faces that are not coplanar (an object edge under a
-        #: link face is nearest it somewhere along the edge); ``feature_normals`` orient them
-        along, along_normals = _edge_points(self.vertices, self.faces, self.face_normals, edge_spacing)
-        self.features = np.concatenate([self.vertices, along])
-        self.feature_normals = np.concatenate([vertex_normals, along_normals])
-        #: the features binned in cubic cells (origin, cell size, shape, CSR starts, feature
-        #: indices), for the link pieces' ball queries (:func:`pipeline.proximity._feature_hits`)
-        self.feature_cells = _cells(self.features, FEATURE_CELL_M)
+        self.features = self._features(vertex_normals, edge_spacing)
+        self.contact_features = (
+            self.features
+            if contact_edge_spacing in (None, edge_spacing)
+            else self._features(vertex_normals, contact_edge_spacing)
+        )
         low, high = self.vertices.min(axis=0), self.vertices.max(axis=0)
         self.box = np.array([low, high])
         self.voxel = float((high - low).max() / grid_cells)
@@ -153,6 +201,11 @@ class ObjectMesh:
         axes = [self.origin[k] + self.voxel * np.arange(shape[k]) for k in range(3)]
         nodes = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
         self.grid = self.signed_distance(nodes).reshape(shape)
+
+    def _features(self, vertex_normals, spacing):
+        along, along_normals = _edge_points(self.vertices, self.faces, self.face_normals, spacing)
+        points = np.concatenate([self.vertices, along])
+        return Features(points, np.concatenate([vertex_normals, along_normals]), _cells(points, FEATURE_CELL_M))
 
     def _tensor(self, points):
         return self._o3d.core.Tensor(np.ascontiguousarray(points, np.float32))
@@ -172,6 +225,19 @@ class ObjectMesh:
             - np.einsum("ij,ij->i", on_mesh - self.vertices[self.faces[triangles, 0]], normals)[:, None] * normals
         )
         return Closest(on_plane, triangles, normals, np.linalg.norm(points - on_plane, axis=1))
+
+    def on_border(self, found):
+        """(n,) bool: the closest points ``found`` (:meth:`closest`) may lie on their triangle's
+        edge or corner (smallest barycentric coordinate below :attr:`pipeline.tol.Tolerances.border`;
+        open3d answers in float32), where the triangle's normal is not the contact's."""
+        corners = self.vertices[self.faces[found.triangles]]
+        ab, ac, ap = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0], found.points - corners[:, 0]
+        dot = lambda u, v: np.einsum("ij,ij->i", u, v)  # noqa: E731
+        d00, d01, d11, d20, d21 = dot(ab, ab), dot(ab, ac), dot(ac, ac), dot(ap, ab), dot(ap, ac)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            v = (d11 * d20 - d01 * d21) / (d00 * d11 - d01 * d01)
+            w = (d00 * d21 - d01 * d20) / (d00 * d11 - d01 * d01)
+        return ~(np.minimum(np.minimum(v, w), 1 - v - w) > tol.border)
 
     def distance(self, points):
         """(n,) exact unsigned distances (m) of (n, 3) points to the mesh."""

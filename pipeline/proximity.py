@@ -6,7 +6,7 @@ The distance of a link to the object is the smaller of two exact one-sided dista
 - link to mesh: the exact distance (:class:`pipeline.mesh_query.ObjectMesh`) from each of the
   link's surface points (every corner and edge, faces at the model's spacing) to the mesh;
 - mesh to link: from each mesh feature point near the link (every vertex, and points along
-  every non-flat edge: :attr:`ObjectMesh.features`) to the link's convex pieces (the plane
+  every non-flat edge: :class:`pipeline.mesh_query.Features`) to the link's convex pieces (the plane
   distance off a face, the nearest hull edge's off an edge or corner: exact); spheres covering
   each piece bound it where no vertex is near.
 
@@ -41,7 +41,7 @@ def _starts(owner, count):
     return np.searchsorted(owner, np.arange(count + 1))
 
 
-def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
+def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=None):
     """Distance (m) of link ``links[i]`` of pose ``rows[i]`` to the object.
 
     Parameters
@@ -56,12 +56,15 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
         Distances at or below it are exact (see the module docstring).
     tolerance : float, optional
         Also return the :class:`Touches` within it (``tolerance <= near``).
+    features : Features, optional
+        The mesh features measured against the links (default ``mesh.features``).
 
     Returns
     -------
     (m,) float, and Touches when ``tolerance`` is given. Links without geometry are inf.
     """
     count = len(model.links)
+    features = mesh.features if features is None else features
     flat = poses.reshape(-1, 4, 4)
     slot = rows * count + links
     distance = np.full(len(rows), np.inf)
@@ -79,7 +82,7 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
         # ``near``, bounded below by their sphere
         far = clearance - model.cover_reach[cover] > near
         _minimum_at(distance, pair[far], clearance[far] - model.cover_reach[cover[far]])
-        point_pair, world = _cover_points(model, flat, slot, pair[~far], cover[~far])
+        point_pair, point, world = _cover_points(model, flat, slot, pair[~far], cover[~far])
         lower = mesh.clearance(world)
         exact = lower <= near
         found = mesh.closest(world[exact])
@@ -87,12 +90,25 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
         _minimum_at(distance, point_pair, lower)
         if tolerance is not None:
             hit = found.distances <= tolerance
+            normals = found.normals[hit]
+            # on an object edge or corner the contact is the object's feature against the link's
+            # face (the mesh-to-link side's normal), not against one of the faces meeting there
+            border = mesh.on_border(found.at(hit))
+            rows = np.flatnonzero(exact)[hit][border]
+            normals[border] = _link_face_normal(
+                model,
+                flat,
+                slot[point_pair[rows]],
+                point[rows],
+                world[rows] - found.points[hit][border],
+                normals[border],
+            )
             touches[0].append(point_pair[exact][hit])
             touches[1].append(found.points[hit])
-            touches[2].append(found.normals[hit])
+            touches[2].append(normals)
         bounds = []
         pair, vertex, signed, normal = _vertex_side(
-            mesh, model, flat, slot, pair, cover, centres, clearance, near, bounds
+            features, model, flat, slot, pair, cover, centres, clearance, near, bounds
         )
         _minimum_at(distance, *bounds[0])
         gap = np.maximum(signed, 0.0)
@@ -100,7 +116,7 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None):
         if tolerance is not None:
             hit = gap <= tolerance
             touches[0].append(pair[hit])
-            touches[1].append(mesh.features[vertex[hit]])
+            touches[1].append(features.points[vertex[hit]])
             touches[2].append(-normal[hit])
     if tolerance is None:
         return distance
@@ -123,15 +139,32 @@ def _covers(mesh, model, flat, slot, close):
 
 
 def _cover_points(model, flat, slot, pair, cover):
-    """The link points of cover spheres ``cover`` (k,) of pairs ``pair`` (k,): their pair (m,)
-    and world positions (m, 3)."""
+    """The link points of cover spheres ``cover`` (k,) of pairs ``pair`` (k,): their pair (m,),
+    index in ``model.points`` (m,) and world positions (m, 3)."""
     starts = _starts(model.point_cover, len(model.cover_radius))
     owner, point = expand_ranges(starts[cover], np.diff(starts)[cover])
-    return pair[owner], transform(flat, slot[pair[owner]], model.points[point])
+    return pair[owner], point, transform(flat, slot[pair[owner]], model.points[point])
 
 
-def _vertex_side(mesh, model, flat, slot, pair, cover, centres, clearance, near, bounds=None):
-    """Mesh features within ``near`` of the convex pieces of the cover spheres ``cover`` of
+def _link_face_normal(model, flat, slot, point, offset, fallback):
+    """(k, 3) outward object normals of link points ``point`` (k,) (of the link poses
+    ``flat[slot]``) off an object edge or corner by ``offset`` (k, 3), world: minus the normal
+    of the link face through the point that best faces the object there (the largest
+    ``-n . offset``), as the mesh-to-link side gives an object feature under a link face; a
+    point on no face of its piece's hull (inside a concave mesh shape) keeps ``fallback``."""
+    rotation = flat[slot, :3, :3]
+    local_offset = np.einsum("kji,kj->ki", rotation, offset)
+    planes = model.planes[model.cover_piece[model.point_cover[point]]]  # (k, F, 4), padded with -inf
+    signed = np.einsum("kfi,ki->kf", planes[..., :3], model.points[point]) + planes[..., 3]
+    score = np.where(np.abs(signed) <= tol.edge_tie_m, -np.einsum("kfi,ki->kf", planes[..., :3], local_offset), -np.inf)
+    best = score.argmax(axis=1)
+    rows = np.arange(len(point))
+    normal = -np.einsum("kij,kj->ki", rotation, planes[rows, best, :3])
+    return np.where(np.isfinite(score[rows, best])[:, None], normal, fallback)
+
+
+def _vertex_side(features, model, flat, slot, pair, cover, centres, clearance, near, bounds=None):
+    """Mesh ``features`` (:class:`pipeline.mesh_query.Features`) within ``near`` of the convex pieces of the cover spheres ``cover`` of
     pairs ``pair`` (:func:`_covers`, with their ``centres`` and ``clearance``): their pair (k,),
     feature (k,), distance to the piece (k,) m (the largest plane distance, negative, inside) and the contact
     normal (k, 3) pointing out of the link (:func:`_piece_gap`). ``bounds``, a list, receives (pairs, m) of
@@ -153,9 +186,9 @@ def _vertex_side(mesh, model, flat, slot, pair, cover, centres, clearance, near,
         centres[needed],
         reach[needed],
         model.cover_piece[cover],
-        mesh.features,
-        mesh.feature_normals,
-        mesh.feature_cells,
+        features.points,
+        features.normals,
+        features.cells,
         model.planes,
         model.piece_edges,
         model.edge_planes,
@@ -376,6 +409,6 @@ def collides(mesh, model, poses, *, overlap=None, along=None):
         exit_m = mesh.exit_distance(world[inside], along[owner]) - 1e-6
         _minimum_at(deepest, owner, -exit_m)
     unsure = unsure[~hit[rows[unsure]]]  # the vertex test only where no link point is inside
-    pair, _, signed, _ = _vertex_side(mesh, model, flat, slot, *_covers(mesh, model, flat, slot, unsure), 0.0)
+    pair, _, signed, _ = _vertex_side(mesh.features, model, flat, slot, *_covers(mesh, model, flat, slot, unsure), 0.0)
     hit[rows[pair[signed < -overlap]]] = True
     return hit, -deepest

@@ -14,8 +14,8 @@ geometry computed another way, by brute force.
   (:func:`closest_on_triangles`), and every object vertex and creased-edge point at that
   spacing against every link hull (:func:`_hull_gap`), in numpy and scipy's k-d trees, where
   the engine uses open3d, a distance grid, cover spheres and 3 mm samples.
-- **Kinematics** of whether closing presses a touching link into the object: pybullet's link
-  states, differentiated numerically.
+- **Kinematics** of whether closing presses a touching link into the object: pybullet's joint
+  frames and axes (the velocity of a point summed down its chain).
 
 Placement, the closing and approach rules, and the contact merging and quality definitions are
 the engine's (they are what the two share by design). One trial costs tens of pybullet queries
@@ -30,7 +30,9 @@ from scipy.spatial.transform import Rotation
 
 from .bullet import load_hand, pybullet
 from .kinematics import base_poses, hand_model, link_poses
+from .mesh_query import closest_on_triangles
 from .simulation import TrialResult, grade, mass_properties
+from .tol import tol
 
 
 def winding_number(vertices, faces, points):
@@ -66,35 +68,6 @@ class _Probe:
     triangles: np.ndarray
     planes: np.ndarray
     surface: np.ndarray
-
-
-def closest_on_triangles(points, triangles):
-    """(n, 3) closest points on (n, 3, 3) triangles to (n, 3) points, pairwise (Ericson,
-    *Real-Time Collision Detection*, 5.1.5: the Voronoi region of a corner, an edge or the
-    face), and (n,) bool: on a corner or an edge."""
-    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
-    ab, ac = b - a, c - a
-    dot = lambda u, v: np.einsum("ij,ij->i", u, v)  # noqa: E731
-    d1, d2 = dot(ab, points - a), dot(ac, points - a)
-    d3, d4 = dot(ab, points - b), dot(ac, points - b)
-    d5, d6 = dot(ab, points - c), dot(ac, points - c)
-    vc, vb, va = d1 * d4 - d3 * d2, d5 * d2 - d1 * d6, d3 * d6 - d5 * d4
-    with np.errstate(divide="ignore", invalid="ignore"):
-        on_ab = a + (d1 / (d1 - d3))[:, None] * ab
-        on_ac = a + (d2 / (d2 - d6))[:, None] * ac
-        on_bc = b + ((d4 - d3) / ((d4 - d3) + (d5 - d6)))[:, None] * (c - b)
-        total = va + vb + vc
-        inside = a + (vb / total)[:, None] * ab + (vc / total)[:, None] * ac
-    regions = [
-        (d1 <= 0) & (d2 <= 0),
-        (d3 >= 0) & (d4 <= d3),
-        (vc <= 0) & (d1 >= 0) & (d3 <= 0),
-        (d6 >= 0) & (d5 <= d6),
-        (vb <= 0) & (d2 >= 0) & (d6 <= 0),
-        (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0),
-    ]
-    choices = [a, b, on_ab, c, on_ac, on_bc]
-    return np.select([region[:, None] for region in regions], choices, inside), np.any(regions, axis=0)
 
 
 def _hull_edge_points(hull, spacing):
@@ -169,6 +142,8 @@ class ReferenceEngine:
         link_index = {row[12].decode(): row[0] for row in info}
         # pybullet link index of each model link (-1: the base)
         self.links = [-1] + [link_index[name] for name in self.model.links[1:]]
+        # each model link's joint axis in its own (the joint's) frame
+        self.joint_axes = np.array([[0.0, 0.0, 0.0]] + [info[index][13] for index in self.links[1:]])
         for link in self.links:
             self._call(pybullet.changeDynamics, self.body, link, collisionMargin=0.0)
         self.probes = [
@@ -269,7 +244,9 @@ class ReferenceEngine:
         """The touching pairs of :mod:`pipeline.contacts` (its definition 1) of model link ``link``
         within ``tolerance``, brute force: distances (k,), object points (k, 3) and outward
         normals (k, 3). A link surface point (along every shape's hull edges at
-        :data:`REFERENCE_SPACING_M`) gives its closest mesh point and that triangle's normal; a
+        :data:`REFERENCE_SPACING_M`) gives its closest mesh point and that triangle's normal (on
+        an object edge or corner, minus the normal of the shape's face through it that best faces
+        the object there); a
         mesh feature (every vertex, and points along creased edges at that spacing) gives itself
         and the shape face's normal reversed (off an edge or corner, of the faces through its
         nearest point the one that best faces the object's normal there)."""
@@ -277,11 +254,22 @@ class ReferenceEngine:
         for probe, position, rotation in self._placed(link):
             world = probe.surface @ rotation.T + position
             near = np.isfinite(self.vertex_tree.query(world, distance_upper_bound=tolerance + self.longest_edge)[0])
-            distance, closest, triangle = self._closest_on_object(world[near], tolerance)
+            distance, closest, triangle, border = self._closest_on_object(world[near], tolerance)
             touching = distance <= tolerance
             gaps.append(distance[touching])
             points.append(closest[touching])
-            normals.append(self.face_normals[triangle[touching]])
+            normal = self.face_normals[triangle[touching]]
+            # on an object edge or corner: minus the normal of the shape's face through the
+            # point that best faces the object there
+            on_edge = border[touching]
+            local = probe.surface[near][touching][on_edge]
+            offset = (world[near][touching][on_edge] - closest[touching][on_edge]) @ rotation
+            through = np.abs(local @ probe.planes[:, :3].T + probe.planes[:, 3]) <= 1e-9
+            score = np.where(through, -offset @ probe.planes[:, :3].T, -np.inf)
+            best = score.argmax(axis=1)
+            found = np.isfinite(score[np.arange(len(best)), best])
+            normal[np.flatnonzero(on_edge)[found]] = -probe.planes[best[found], :3] @ rotation.T
+            normals.append(normal)
             centre = probe.triangles.reshape(-1, 3).mean(axis=0)
             reach = np.linalg.norm(probe.triangles.reshape(-1, 3) - centre, axis=1).max() + tolerance
             nearby = np.asarray(self.feature_tree.query_ball_point(centre @ rotation.T + position, reach), int)
@@ -294,15 +282,15 @@ class ReferenceEngine:
         return np.concatenate(gaps), np.concatenate(points), np.concatenate(normals)
 
     def _closest_on_object(self, points, reach):
-        """Distance (n,), closest point (n, 3) and triangle (n,) on the object of (n, 3) points
-        known to be within ``reach`` plus the longest edge of a vertex (at a tie, the triangle
-        whose normal best faces the point)."""
+        """Distance (n,), closest point (n, 3), triangle (n,) and whether on its edge or corner
+        (n,) on the object of (n, 3) points known to be within ``reach`` plus the longest edge
+        of a vertex (at a tie, the triangle whose normal best faces the point)."""
         if not len(points):
-            return np.zeros(0), np.zeros((0, 3)), np.zeros(0, int)
+            return np.zeros(0), np.zeros((0, 3)), np.zeros(0, int), np.zeros(0, bool)
         found = self.centroid_tree.query_ball_point(points, reach + self.longest_edge)
         owner = np.repeat(np.arange(len(points)), [len(row) for row in found])
         triangle = np.concatenate([np.asarray(row, int) for row in found])
-        closest = closest_on_triangles(points[owner], self.vertices[self.faces[triangle]])[0]
+        closest, border = closest_on_triangles(points[owner], self.vertices[self.faces[triangle]])
         offset = points[owner] - closest
         distance = np.linalg.norm(offset, axis=1)
         facing = np.einsum("ij,ij->i", offset, self.face_normals[triangle])
@@ -312,8 +300,9 @@ class ReferenceEngine:
             np.full(len(points), np.inf),
             np.zeros((len(points), 3)),
             np.zeros(len(points), int),
+            np.zeros(len(points), bool),
         )
-        for values, found in zip(result, (distance, closest, triangle)):
+        for values, found in zip(result, (distance, closest, triangle, border)):
             values[owner[first]] = found[first]
         return result
 
@@ -329,18 +318,31 @@ class ReferenceEngine:
             state = self._call(pybullet.getLinkState, self.body, self.links[link], computeForwardKinematics=True)[4:6]
         return np.asarray(state[0]), np.array(pybullet.getMatrixFromQuaternion(state[1])).reshape(3, 3)
 
-    def _pressed(self, base, q, active, link, step=1e-5):
+    def _pressed(self, active, link):
         """Whether closing the ``active`` joints presses link ``link``'s touching pairs
-        (:meth:`_touching_pairs`) into the object: their motion over a tiny closing step
-        (pybullet's kinematics, numerically) against the object's normal there."""
+        (:meth:`_touching_pairs`) into the object: their velocity (:meth:`_velocity`) against
+        the object's normal there, by more than :attr:`pipeline.tol.Tolerances.sliding` of
+        their speed."""
         _, points, normals = self._touching_pairs(link, self.settings.contact_tolerance_m)
-        origin, rotation = self._link_frame(link)
-        local = (points - origin) @ rotation
-        self._pose(base, np.where(active, q + step * self.model.closing, q))
-        origin, rotation = self._link_frame(link)
-        self._pose(base, q)
-        moved = local @ rotation.T + origin - points
-        return bool((np.einsum("ij,ij->i", moved, normals) < 0).any())
+        velocity = self._velocity(link, points, active)
+        into = np.einsum("ij,ij->i", velocity, normals) < -tol.sliding * np.linalg.norm(velocity, axis=1)
+        return bool(into.any())
+
+    def _velocity(self, link, points, active):
+        """(k, 3) velocity (m per unit of closing) of world ``points`` (k, 3) on model link
+        ``link`` under the ``active`` joints closing, from pybullet's joint frames and axes down
+        the chain (pybullet's link states are float32: a numerical derivative over a small
+        closing step was off by 2e-4 of the speed, enough to press a face sliding past a vertex)."""
+        model, velocity, walk = self.model, np.zeros_like(points), link
+        while walk > 0:
+            joint = model.driver[walk]
+            if joint >= 0 and active[joint]:
+                origin, rotation = self._link_frame(walk)
+                axis = rotation @ self.joint_axes[walk]
+                rate = model.closing[joint] * model.multiplier[walk]
+                velocity += rate * (axis if model.prismatic[walk] else np.cross(axis, points - origin))
+            walk = model.parent[walk]
+        return velocity
 
     def _collides(self, base, q):
         geometric = [link for link in range(len(self.model.links)) if self.model.link_radius[link] > 0]
@@ -408,7 +410,7 @@ class ReferenceEngine:
             )
             touching = np.flatnonzero(distance <= tolerance)
             pressing = np.zeros(len(model.links), bool)
-            pressing[touching] = [self._pressed(base, q, active, link) for link in touching]
+            pressing[touching] = [self._pressed(active, link) for link in touching]
             stopped = active & ((pressing.astype(float) @ model.moves.T) > 0)
             by_contact |= stopped
             active &= ~stopped

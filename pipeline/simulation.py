@@ -65,6 +65,7 @@ class TrialSettings:
     near_m: float
     max_close_steps: int
     link_point_spacing_m: float
+    contact_point_spacing_m: float
     coplanar_deg: float
     max_link_contacts: int
     grid_cells: int
@@ -139,12 +140,17 @@ class GraspEngine:
 
         self.settings = TrialSettings(**{**SimulateParams().world_settings(), **settings})
         self.hand = hand
-        self.model = hand_model(hand, spacing=self.settings.link_point_spacing_m)
+        spacing = self.settings.link_point_spacing_m
+        self.model = hand_model(hand, spacing=spacing)
+        # the closed hands' contacts from finer points on the same edges (and the same links)
+        refine = int(np.ceil(spacing / self.settings.contact_point_spacing_m - 1e-9))
+        self.contact_model = hand_model(hand, spacing=spacing, refine=refine)
         self.mesh = ObjectMesh(
             surface.vertices,
             surface.faces,
             grid_cells=self.settings.grid_cells,
-            edge_spacing=self.settings.link_point_spacing_m,
+            edge_spacing=spacing,
+            contact_edge_spacing=self.settings.contact_point_spacing_m,
         )
         self.centre = mass_properties(self.mesh.vertices, self.mesh.faces)
         self.torque_scale = float(np.linalg.norm(self.mesh.vertices - self.centre, axis=1).max())
@@ -209,12 +215,13 @@ class GraspEngine:
         owner = np.repeat(np.arange(len(rows)), len(links))
         distance, touches = measure(
             self.mesh,
-            model,
+            self.contact_model,
             poses,
             owner,
             np.tile(links, len(rows)),
             near=self.settings.contact_tolerance_m,
             tolerance=self.settings.contact_tolerance_m,
+            features=self.mesh.contact_features,
         )
         distance = distance.reshape(len(rows), len(links))
         order = np.argsort(touches.pair, kind="stable")
@@ -322,7 +329,7 @@ class GraspEngine:
             owner, link = pairs[touches.pair], links[touches.pair]
             velocity = self._velocity(poses, owner, link, touches.points, active[rows][owner])
             pressing = np.zeros(wanted.shape, bool)
-            into = np.einsum("ij,ij->i", velocity, touches.normals) < 0
+            into = np.einsum("ij,ij->i", velocity, touches.normals) < -tol.sliding * np.linalg.norm(velocity, axis=1)
             pressing[owner[into], link[into]] = True
             stopped = active[rows] & ((pressing.astype(float) @ model.moves.T) > 0)
             by_contact[rows] |= stopped

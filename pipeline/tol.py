@@ -30,6 +30,15 @@ class Tolerances:
     edge_tie_m: float = 1e-9
     """Link edges this much farther than the nearest still count as nearest, so that the contact
     normal at a link corner does not hang on rounding (:mod:`pipeline.proximity`)."""
+    border: float = 1e-4
+    """A closest point whose smallest barycentric coordinate in its triangle is below this may
+    lie on the triangle's edge or corner, where another triangle ties with it
+    (:meth:`pipeline.mesh_query.ObjectMesh.facing`; open3d answers in float32)."""
+    sliding: float = 1e-6
+    """A touching point whose closing velocity points into the object by less than this
+    fraction of its speed slides past it and does not stop its link: a prismatic jaw's side
+    face runs exactly along its motion, where the sign of the tiny product was rounding
+    (:mod:`pipeline.simulation`, :mod:`pipeline.reference_trial`)."""
     overlap_m: float = 1e-6
     """A mesh vertex deeper than this inside a link is a collision (proximity)."""
     point_decimals: int = 12

@@ -271,16 +271,36 @@ def test_link_distances_match_a_dense_brute_force_and_never_undershoot():
 
 
 @pytest.mark.parametrize("name", sorted(HANDS))
-def test_every_link_point_lies_in_the_cover_sphere_that_culls_it(name):
+@pytest.mark.parametrize("refine", [1, 3])
+def test_every_link_point_lies_in_the_cover_sphere_that_culls_it(name, refine):
     """A measure skips the points of a cover sphere far from the object, bounding them by the
     sphere's clearance less its reach: that bound holds only if each point is within its
-    sphere's reach, on its own link, and the reach is no more than the sphere's radius."""
-    model = hand_model(HANDS[name], spacing=0.003)
+    sphere's reach, on its own link, and the reach is no more than the sphere's radius (the
+    closing model and the finer contact model alike)."""
+    model = hand_model(HANDS[name], spacing=0.003, refine=refine)
     offset = np.linalg.norm(model.points - model.cover_centre[model.point_cover], axis=1)
     assert np.all(offset <= model.cover_reach[model.point_cover] + 1e-12)
     assert np.array_equal(model.piece_link[model.cover_piece[model.point_cover]], model.point_link)
     assert np.all(model.cover_reach <= model.cover_radius * (1 + 1e-9))
     assert np.all(np.diff(model.point_cover) >= 0)  # grouped by sphere, so a sphere's points are a range
+
+
+@pytest.mark.parametrize("name", sorted(HANDS))
+def test_the_contact_model_holds_the_closing_points_and_splits_their_gaps(name):
+    """The closed hand's contacts are measured at 1 mm (``contact_point_spacing_m``) on the same
+    edges as the closing rule's 3 mm points, those among them: so a link the closing rule
+    found within the tolerance is found so by the contacts too. Same links and kinematics."""
+    from scipy.spatial import cKDTree
+
+    closing, contact = hand_model(HANDS[name], spacing=0.003), hand_model(HANDS[name], spacing=0.003, refine=3)
+    assert closing.links == contact.links and np.array_equal(closing.lever, contact.lever)
+    np.testing.assert_array_equal(closing.link_radius, contact.link_radius)
+    for link in np.flatnonzero(closing.link_radius > 0):
+        coarse, fine = closing.points[closing.point_link == link], contact.points[contact.point_link == link]
+        assert len(fine) > 2 * len(coarse)
+        assert cKDTree(fine).query(coarse)[0].max() < 1e-9  # every closing point is a contact point
+        # the gaps along each edge: a point's nearest neighbour at most 1 mm away
+        assert cKDTree(fine).query(fine, k=2)[0][:, 1].max() <= 0.001 + 1e-9
 
 
 def test_a_point_above_a_face_beside_an_obtuse_edge_is_at_its_plane_distance():
@@ -355,3 +375,32 @@ def test_outcomes_agree_with_the_pybullet_reference_on_the_duck():
         reference.close()
         agree[name] = sum(a.outcome == b.outcome for a, b in zip(ours, theirs))
     assert sum(agree.values()) >= 32, agree
+
+
+def test_jaw_contacts_on_a_finely_meshed_cube_reach_as_far_as_its_edges_stay_within_the_tolerance():
+    """The jaw across a 4 cm cube whose faces are 2.5 mm triangles (closing along x, the 20 mm
+    pads stopping 1 mm off the faces, as the reference's test): contacts with a face's normal
+    reach out in y as far as the cube's top and bottom edges stay within the 2 mm tolerance of
+    the pad's edge, 10 + sqrt(2^2 - 1^2) = 11.73 mm, less at most the 1 mm contact spacing
+    along those edges. At the closing rule's 3 mm the edges' 2.5 mm pieces hold only their
+    vertices, and the contacts stop at 10 mm."""
+    from types import SimpleNamespace
+
+    import trimesh
+
+    mesh = trimesh.creation.box(extents=(0.04, 0.04, 0.04))
+    for _ in range(4):
+        mesh = mesh.subdivide()
+    fine = SimpleNamespace(vertices=np.asarray(mesh.vertices), faces=np.asarray(mesh.faces), source="cube")
+    reach = 0.01 + np.sqrt(0.002**2 - 0.001**2)
+    for spacing, low, high in ((0.001, reach - 0.001, reach), (0.003, 0.01 - 1e-9, 0.01 + 1e-9)):
+        engine = GraspEngine(fine, HANDS["parallel_jaw"], contact_point_spacing_m=spacing)
+        result = engine.trial([0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0])
+        assert result.outcome == "force_closure" and result.finger_stops == ("contact", "contact")
+        np.testing.assert_allclose(result.joint_positions, 0.019, atol=1e-6)
+        on_face = np.abs(result.contact_normals[:, 0]) > 1 - 1e-9
+        for side in (1.0, -1.0):
+            face = result.contact_points[on_face & (np.sign(result.contact_normals[:, 0]) == side)]
+            np.testing.assert_allclose(face[:, 0], side * 0.02, atol=1e-7)
+            np.testing.assert_allclose([face[:, 2].min(), face[:, 2].max()], [-0.02, 0.02], atol=1e-7)
+            assert low <= -face[:, 1].min() <= high and low <= face[:, 1].max() <= high, (spacing, face[:, 1])
