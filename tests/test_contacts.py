@@ -31,13 +31,34 @@ def test_a_line_contact_is_its_two_ends():
     assert as_set(corners) == {(0.0, 0.0, 0.0), (0.02, 0.0, 0.0)}
 
 
-def test_a_smoothly_curved_patch_is_one_region():
-    """Normals 2 deg apart along an arc of 40 deg: each agrees with its neighbours within 5 deg,
-    so the chain is one region and gives its two ends, though the ends differ by 40 deg."""
+def test_a_curved_patch_is_cut_into_regions_within_the_angle_of_a_seed():
+    """Normals 2 deg apart along an arc of 40 deg, each touched once: the seeds go from the
+    smallest normal (x, lexicographically) up, each region takes the normals within 5 deg of
+    its seed (0..-4.. are 1 region: 0, 2, 4 deg; then 6, 8, 10; ...), and gives its two ends:
+    the arc's normals survive in steps of at most 5 deg instead of one chain of 40 deg."""
     angle = np.radians(np.arange(0, 41, 2))
     normals = np.c_[np.sin(angle), np.zeros_like(angle), np.cos(angle)]
     points = 0.05 * normals
-    assert list(region_corners(points, normals, max_corners=4)) == [0, len(angle) - 1]
+    kept = np.degrees(angle[region_corners(points, normals)]).round().astype(int).tolist()
+    assert kept == [0, 4, 6, 10, 12, 16, 18, 22, 24, 28, 30, 34, 36, 40]
+
+
+def test_a_finger_along_a_round_leg_keeps_the_legs_facet_normals():
+    """A finger face (normal -y reversed: +y outward) lying along a leg of 4 deg facets: many
+    touching points with the finger's normal and a strip of points on each facet. A chain of
+    agreeing normals made one region whose hull kept only the finger's normal; seeded regions
+    keep a corner on each side of the 5 deg band around it."""
+    along = np.linspace(0.0, 0.02, 11)
+    face = np.array([(0.0, 0.0, z) for z in along] * 3) + np.repeat([[-0.005, 0, 0], [0, 0, 0], [0.005, 0, 0]], 11, 0)
+    face_normals = np.tile([0.0, 1.0, 0.0], (len(face), 1))
+    # the leg's strip lies inside the finger face's footprint, so one region's hull is the face's
+    facets = np.radians(np.arange(-16, 17, 4))
+    strip = np.array([(0.01 * np.sin(a), 0.0, z) for a in facets for z in (0.005, 0.015)])
+    strip_normals = np.repeat(np.c_[np.sin(facets), np.cos(facets), np.zeros_like(facets)], 2, axis=0)
+    points, normals = np.r_[face, strip], np.r_[face_normals, strip_normals]
+    kept = normals[region_corners(points, normals)]
+    tilt = np.degrees(np.arctan2(kept[:, 0], kept[:, 1])).round().astype(int)
+    assert tilt.min() == -16 and tilt.max() == 16
 
 
 def test_two_faces_give_the_corners_of_each_and_at_most_max_corners():
