@@ -193,7 +193,7 @@ def trial_bench_chain():
     return artefacts, len(mesh.faces)
 
 
-def run_trial_bench(*, trials=512, reference_trials=30, out=print):
+def run_trial_bench(*, trials=512, reference_trials=60, out=print):
     """Grasp trials per second per hand on a ~17k-triangle duck, the engine
     (:mod:`pipeline.simulation`, batched) beside the one it replaced (:mod:`pipeline.legacy_trial`,
     one trial at a time; box-link hands only) on the same random MAT candidates, one core; where
