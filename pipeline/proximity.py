@@ -94,13 +94,13 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
             # on an object edge or corner the contact is the object's feature against the link's
             # face (the mesh-to-link side's normal), not against one of the faces meeting there
             border = mesh.on_border(found.at(hit))
-            rows = np.flatnonzero(exact)[hit][border]
+            on_edge = np.flatnonzero(exact)[hit][border]
             normals[border] = _link_face_normal(
                 model,
                 flat,
-                slot[point_pair[rows]],
-                point[rows],
-                world[rows] - found.points[hit][border],
+                slot[point_pair[on_edge]],
+                point[on_edge],
+                world[on_edge] - found.points[hit][border],
                 normals[border],
             )
             touches[0].append(point_pair[exact][hit])
@@ -164,8 +164,8 @@ def _link_face_normal(model, flat, slot, point, offset, fallback):
 
 
 def _vertex_side(features, model, flat, slot, pair, cover, centres, clearance, near, bounds=None):
-    """Mesh ``features`` (:class:`pipeline.mesh_query.Features`) within ``near`` of the convex pieces of the cover spheres ``cover`` of
-    pairs ``pair`` (:func:`_covers`, with their ``centres`` and ``clearance``): their pair (k,),
+    """Mesh ``features`` (:class:`pipeline.mesh_query.Features`) within ``near`` of the convex
+    pieces of the cover spheres ``cover`` of pairs ``pair`` (:func:`_covers`, with their ``centres`` and ``clearance``): their pair (k,),
     feature (k,), distance to the piece (k,) m (the largest plane distance, negative, inside) and the contact
     normal (k, 3) pointing out of the link (:func:`_piece_gap`). ``bounds``, a list, receives (pairs, m) of
     the cover spheres too far for any vertex to be within ``near``: their lower bounds, which

@@ -18,11 +18,14 @@ candidate (P_g, P_d, P_o, preshape):
    closes toward the lower limit; URDF mimic joints follow their leader), by conservative
    advancement: no point of a link moves farther than that link's distance to the object less
    half the tolerance, so nothing tunnels. A link within the tolerance that closing presses
-   into the object (a touching point's velocity against the object's normal) stops every joint
+   into the object (a touching point's velocity against the object's normal, by more than
+   :attr:`pipeline.tol.Tolerances.sliding` of its speed) stops every joint
    that moves it; joints beyond it close on (the Barrett breakaway), and a link touching on its
    back, which closing moves away, goes on. A finger stops on ``contact``, at
    its joint ``limit``, or at the ``max_close_steps`` cap (outcome ``step_cap``);
-5. contacts (:mod:`pipeline.contacts`) and the Ferrari-Canny epsilon (:mod:`pipeline.quality`),
+5. contacts (:mod:`pipeline.contacts`), measured finer than the closing steps
+   (``contact_point_spacing_m``: the link edges' points and the object's crease points), and
+   the Ferrari-Canny epsilon (:mod:`pipeline.quality`),
    torque scaled by the object's largest distance from its centre of mass (GraspIt, Dex-Net).
 
 Outcomes: ``force_closure``, ``no_force_closure``, ``no_contact``, ``collision``, ``step_cap``,
