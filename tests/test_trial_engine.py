@@ -341,11 +341,11 @@ def test_barrett_on_the_rim_of_the_mugs_6_mm_wall_touches_both_faces():
 def test_outcomes_agree_with_the_pybullet_reference_on_the_duck():
     """20 random MAT candidates per hand on pybullet's duck (6 cm), the engine against
     :mod:`pipeline.reference_trial` (the same protocol; distances from pybullet, touching pairs
-    by brute force). Measured when written: jaw 15/20, Barrett 17/20 (against pybullet's own
-    pairs, 18 and 19; on the bench's sample the new reference agrees more, 112 of 120 against
-    107). The jaw's differ in where one pad stops: a mesh vertex beside the pad's side face,
-    the closing motion along that face to rounding (velocity . normal = +-4e-18), stops it in
-    one and, on the last bit of the pose, not in the other. 32 of the 40 is the floor."""
+    by brute force). Measured when written (session 13): jaw 20/20, Barrett 19/20 (session 12:
+    15 and 17, the floor then 32). The jaw's five differences were the reference's pressing
+    test: its numerical derivative of pybullet's float32 link states, 2e-4 of the speed off,
+    pressed a pad sliding past a vertex beside its side face. 37 of the 40 is the floor (room
+    for another platform's rounding in where a finger stops)."""
     from pipeline import sphere_grid
     from pipeline.arrays import vectors
     from pipeline.candidates import generate
@@ -374,7 +374,7 @@ def test_outcomes_agree_with_the_pybullet_reference_on_the_duck():
         theirs = reference.run(*targets)
         reference.close()
         agree[name] = sum(a.outcome == b.outcome for a, b in zip(ours, theirs))
-    assert sum(agree.values()) >= 32, agree
+    assert sum(agree.values()) >= 37, agree
 
 
 def test_jaw_contacts_on_a_finely_meshed_cube_reach_as_far_as_its_edges_stay_within_the_tolerance():
