@@ -43,3 +43,19 @@ def load_hand(hand, client):
         return pybullet.loadURDF(path, useFixedBase=True, physicsClientId=client)
     finally:
         os.unlink(path)
+
+
+class BulletClient:
+    """A headless pybullet client of its own (``DIRECT``): ``_call`` passes its id to a pybullet
+    function, :meth:`close` disconnects it (once)."""
+
+    def __init__(self):
+        self.client = pybullet.connect(pybullet.DIRECT)
+
+    def _call(self, function, *args, **kwargs):
+        return function(*args, physicsClientId=self.client, **kwargs)
+
+    def close(self):
+        if self.client is not None:
+            pybullet.disconnect(physicsClientId=self.client)
+            self.client = None

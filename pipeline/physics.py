@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .bullet import load_hand, pybullet
+from .bullet import BulletClient, load_hand, pybullet
 from .simulation import mass_properties
 
 
@@ -118,7 +118,7 @@ def mesh_volume(vertices, faces):
     return float(np.einsum("ij,ij->i", corners[:, 0], np.cross(corners[:, 1], corners[:, 2])).sum() / 6.0)
 
 
-class PhysicsCheck:
+class PhysicsCheck(BulletClient):
     """Checks closed grasps of one hand on one object (see the module docstring).
 
     Parameters
@@ -134,7 +134,7 @@ class PhysicsCheck:
 
     def __init__(self, vertices, faces, hand, model, *, parts=None, settings=PhysicsSettings()):
         self.settings, self.model = settings, model
-        self.client = pybullet.connect(pybullet.DIRECT)
+        super().__init__()
         call = self._call
         call(pybullet.setTimeStep, settings.timestep_s)
         parts = convex_parts(vertices, faces, client=self.client) if parts is None else parts
@@ -171,14 +171,6 @@ class PhysicsCheck:
             with open(path, "w") as stream:
                 stream.write("\n".join(lines) + "\n")
             return self._call(pybullet.createCollisionShape, pybullet.GEOM_MESH, fileName=path)
-
-    def _call(self, function, *args, **kwargs):
-        return function(*args, physicsClientId=self.client, **kwargs)
-
-    def close(self):
-        if self.client is not None:
-            pybullet.disconnect(physicsClientId=self.client)
-            self.client = None
 
     def _drive(self, q):
         """Position targets ``q`` (J,) for every moving joint, mimics through the model."""

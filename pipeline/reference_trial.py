@@ -28,7 +28,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, cKDTree
 from scipy.spatial.transform import Rotation
 
-from .bullet import load_hand, pybullet
+from .bullet import BulletClient, load_hand, pybullet
 from .kinematics import base_poses, hand_model, link_poses
 from .mesh_query import closest_on_triangles
 from .simulation import TrialResult, grade, mass_properties
@@ -111,7 +111,7 @@ def _hull_gap(triangles, planes, points, facing, tie=1e-9):
     return gap, face
 
 
-class ReferenceEngine:
+class ReferenceEngine(BulletClient):
     """``run`` and ``trial`` as :class:`pipeline.simulation.GraspEngine`'s, from pybullet."""
 
     def __init__(self, surface, hand, **settings):
@@ -124,7 +124,7 @@ class ReferenceEngine:
         self.centre = mass_properties(surface.vertices, surface.faces)
         self.torque_scale = float(np.linalg.norm(surface.vertices - self.centre, axis=1).max())
         self._index_object(np.asarray(surface.vertices, float), np.asarray(surface.faces))
-        self.client = pybullet.connect(pybullet.DIRECT)
+        super().__init__()
         shape = self._call(
             pybullet.createCollisionShape,
             pybullet.GEOM_MESH,
@@ -178,14 +178,6 @@ class ReferenceEngine:
         self.feature_normals = np.concatenate([vertex_normals, along_normals])
         self.feature_normals /= np.linalg.norm(self.feature_normals, axis=1, keepdims=True)
         self.feature_tree = cKDTree(self.features)
-
-    def _call(self, function, *args, **kwargs):
-        return function(*args, physicsClientId=self.client, **kwargs)
-
-    def close(self):
-        if self.client is not None:
-            pybullet.disconnect(physicsClientId=self.client)
-            self.client = None
 
     def _pose(self, base, q):
         position, quaternion = base[:3, 3], Rotation.from_matrix(base[:3, :3]).as_quat()

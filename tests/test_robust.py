@@ -17,6 +17,22 @@ def seeds(count, entropy=7):
     return np.random.SeedSequence(entropy).spawn(count)
 
 
+def jaw_robust(engine, samples, pose_sigma, angle_sigma, mu_sigma):
+    """Robust force closure of the jaw-on-cube candidate, seeded as :func:`seeds`."""
+    return robust_force_closure(
+        engine,
+        GRASP,
+        APPROACH,
+        ORIENT,
+        [None],
+        seeds(1),
+        samples=samples,
+        pose_sigma_m=pose_sigma,
+        angle_sigma_rad=angle_sigma,
+        mu_sigma=mu_sigma,
+    )
+
+
 def test_without_noise_the_copies_are_the_candidate():
     grasp, approach, orient, mu = perturbed_candidates(
         GRASP, APPROACH, ORIENT, seeds(1), samples=4, pose_sigma_m=0.0, angle_sigma_rad=0.0, mu=0.5, mu_sigma=0.0
@@ -79,18 +95,7 @@ def test_jaw_on_a_cube_is_robust_without_noise_and_less_so_as_the_turn_grows():
     nominal = engine.run(GRASP, APPROACH, ORIENT, [None])[0]
 
     def robust(pose_sigma, angle_sigma):
-        return robust_force_closure(
-            engine,
-            GRASP,
-            APPROACH,
-            ORIENT,
-            [None],
-            seeds(1),
-            samples=64,
-            pose_sigma_m=pose_sigma,
-            angle_sigma_rad=angle_sigma,
-            mu_sigma=0.0,
-        )
+        return jaw_robust(engine, 64, pose_sigma, angle_sigma, 0.0)
 
     fraction, epsilon = robust(0.0, 0.0)
     assert fraction[0] == 1.0 and epsilon[0] == pytest.approx(nominal.epsilon, abs=1e-12)
@@ -105,18 +110,7 @@ def test_friction_noise_alone_grades_the_nominal_closed_hand_at_each_copys_mu():
     from pipeline.quality import epsilon_quality
 
     engine = GraspEngine(cube(), HANDS["parallel_jaw"])
-    fraction, epsilon = robust_force_closure(
-        engine,
-        GRASP,
-        APPROACH,
-        ORIENT,
-        [None],
-        seeds(1),
-        samples=32,
-        pose_sigma_m=0.0,
-        angle_sigma_rad=0.0,
-        mu_sigma=0.3,
-    )
+    fraction, epsilon = jaw_robust(engine, 32, 0.0, 0.0, 0.3)
     _, _, _, mus = perturbed_candidates(
         GRASP, APPROACH, ORIENT, seeds(1), samples=32, pose_sigma_m=0.0, angle_sigma_rad=0.0, mu=0.5, mu_sigma=0.3
     )
