@@ -56,35 +56,6 @@ class Features:
     cells: tuple
 
 
-def closest_on_triangles(points, triangles):
-    """(n, 3) closest points on (n, 3, 3) triangles to (n, 3) points, pairwise (Ericson,
-    *Real-Time Collision Detection*, 5.1.5: the Voronoi region of a corner, an edge or the
-    face), and (n,) bool: on a corner or an edge."""
-    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
-    ab, ac = b - a, c - a
-    dot = lambda u, v: np.einsum("ij,ij->i", u, v)  # noqa: E731
-    d1, d2 = dot(ab, points - a), dot(ac, points - a)
-    d3, d4 = dot(ab, points - b), dot(ac, points - b)
-    d5, d6 = dot(ab, points - c), dot(ac, points - c)
-    vc, vb, va = d1 * d4 - d3 * d2, d5 * d2 - d1 * d6, d3 * d6 - d5 * d4
-    with np.errstate(divide="ignore", invalid="ignore"):
-        on_ab = a + (d1 / (d1 - d3))[:, None] * ab
-        on_ac = a + (d2 / (d2 - d6))[:, None] * ac
-        on_bc = b + ((d4 - d3) / ((d4 - d3) + (d5 - d6)))[:, None] * (c - b)
-        total = va + vb + vc
-        inside = a + (vb / total)[:, None] * ab + (vc / total)[:, None] * ac
-    regions = [
-        (d1 <= 0) & (d2 <= 0),
-        (d3 >= 0) & (d4 <= d3),
-        (vc <= 0) & (d1 >= 0) & (d3 <= 0),
-        (d6 >= 0) & (d5 <= d6),
-        (vb <= 0) & (d2 >= 0) & (d6 <= 0),
-        (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0),
-    ]
-    choices = [a, b, on_ab, c, on_ac, on_bc]
-    return np.select([region[:, None] for region in regions], choices, inside), np.any(regions, axis=0)
-
-
 FEATURE_CELL_M = 0.006  # the feature bins' side: a link cover's ball (about 1 cm) spans a few
 FEATURE_CELLS = 64  # the most bins along an axis: a 1 m object gets 1.6 cm bins, not 5 M of them
 

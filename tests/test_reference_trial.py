@@ -6,8 +6,7 @@ import pytest
 
 from pipeline.hands import HANDS
 from pipeline.kinematics import base_poses
-from pipeline.mesh_query import closest_on_triangles
-from pipeline.reference_trial import ReferenceEngine, _hull_gap
+from pipeline.reference_trial import ReferenceEngine, _hull_gap, closest_on_triangles
 from test_simulation import cube, surface
 from test_trial_engine import random_candidates
 
