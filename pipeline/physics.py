@@ -22,14 +22,23 @@ link touches it at the end), ``slipped`` (it moved more than ``slip_m`` or turne
 moved from where the squeeze left it.
 
 Status (session 13): a core, not yet in the stages. Exact on convex objects (the tests), but
-on a real mesh the convex parts bulge past the surface by a few mm where the kinematic trial
-closed the hand within 2 mm of it: on the bench's duck, 55 of 60 closed Barrett hands overlap
-V-HACD's 5 parts by more than 1 mm at the start, and the check then reads mostly ``no_grasp``
-or ``dropped`` (force-closure trials held: ARMAR-III 0 of 59, Barrett 1 of 30, franka 7 of 8).
-Before it is wired in, the check has to start clear of the parts (back the hand out along its
-approach and re-close, as a physical pre-grasp would) or use a tighter decomposition.
-Cost on the duck: 4-19 ms of CPU per check (jaw 3.9, Barrett 8.2, franka 9.0, ARMAR-III 18.5),
-plus about 3 s of V-HACD per object.
+not yet a judge of real meshes. On the bench's duck (129 g at 500 kg/m^3) few force-closure
+trials are held (ARMAR-III 0 of 59, Barrett 1 of 30, the jaw 1 of 39, franka 7 of 8), for two
+reasons found so far:
+
+- the convex parts (V-HACD, 5 on the duck) bulge about 2 mm past the surface (the body's
+  bounds against the mesh's), where the kinematic trial closed the hand within 2 mm of it:
+  55 of 60 closed Barrett hands overlap them by more than 1 mm as closed (opened by 0.05 rad
+  first, the hands no longer overlap, but the outcomes hardly change);
+- the squeeze pushes the weightless object out of the hand: a jaw trial with force closure had
+  the duck moved 10 mm by the pads within 0.08 s, before gravity was on. A kinematic force
+  closure counts every point within the 2 mm tolerance; the pads squeezing at 20 N touch only
+  the first points, whose normals need not oppose. Slower fingers (0.3 rad/s) did not change it.
+
+Next: squeeze to just past contact with a force in proportion to the object's weight, let the
+object rest against the hand first, and a tighter decomposition; then compare with force
+closure per object before it joins the stages. Cost on the duck: 4-19 ms of CPU per check (jaw
+3.9, Barrett 8.2, franka 9.0, ARMAR-III 18.5), plus about 3 s of V-HACD per object.
 """
 
 import os
