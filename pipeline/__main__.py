@@ -1,4 +1,4 @@
-"""Command line: ``medial-grasp {plan,batch,bench,hands,objects} ...`` (also ``python -m pipeline``;
+"""Command line: ``medial-grasp {plan,batch,bench,hands,objects,ablate} ...`` (also ``python -m pipeline``;
 ``--help`` on each)."""
 
 import argparse
@@ -73,6 +73,13 @@ def main(argv=None):
     plan.add_argument(
         "--workers", type=int, default=None, help="trial processes (default: params simulate.workers; 0 = every core)"
     )
+    plan.add_argument(
+        "--checks",
+        type=int,
+        default=None,
+        help="trials checked (physics and robust force closure) per hand and planner "
+        "(default: params checks.trials; -1 = every trial, 0 = none)",
+    )
     plan.add_argument("--no-simulate", action="store_true", help="stop after the candidates")
     plan.add_argument(
         "--record", action="store_true", help="also write recording.rrd (open with `rerun`) and log.mcap into --out"
@@ -116,6 +123,13 @@ def main(argv=None):
         default=None,
         help="random spheres per object and hand (default: params simulate.spheres_per_object)",
     )
+    batch.add_argument(
+        "--checks",
+        type=int,
+        default=None,
+        help="trials checked (physics and robust force closure) per hand and planner "
+        "(default: params checks.trials; -1 = every trial, 0 = none)",
+    )
     batch.add_argument("--params", default=None, help=PARAMS_HELP)
     bench = _subcommand(
         commands,
@@ -139,7 +153,7 @@ def main(argv=None):
     )
     bench.add_argument(
         "--only",
-        choices=("medial", "symmetry", "trials", "recording", "batch"),
+        choices=("medial", "symmetry", "trials", "checks", "recording", "batch"),
         default=None,
         help="run one table (default: all)",
     )
@@ -189,6 +203,58 @@ def main(argv=None):
         help="replace the objects section of this params file (else print the entries); "
         "its sample section and scales set the checks",
     )
+    ablate = _subcommand(
+        commands,
+        "ablate",
+        help="rerun one object's candidates switching one trial modelling choice at a time",
+        description="Run the same candidates (the simulate stage's choice) through the grasp trials with the\n"
+        "params as they are and once per variant that switches one modelling choice (retreat and\n"
+        "approach steps, retreat only, contact tolerance, region merging, palm contacts, mu 1.0);\n"
+        "print per hand, variant and planner the force-closure and physics success rates and their\n"
+        "change from the default row, in points (see docs/ablation.md).",
+        examples=[
+            f"{prog} ablate primitive:mug --hand barrett --spheres 20 --physics-trials 20",
+            f"{prog} ablate --from-data data/duck/1.0 --hand armar3 --hand barrett --spheres 40 --out duck.csv",
+        ],
+    )
+    ablate.add_argument(
+        "mesh", nargs="?", default=None, help="mesh file, primitive:NAME or pybullet:RELPATH (not with --from-data)"
+    )
+    ablate.add_argument(
+        "--from-data",
+        metavar="DIR",
+        default=None,
+        help="reuse a DVC run folder (e.g. data/duck/1.0: surface.npz, <hand>/candidates.parquet) "
+        "instead of running the chain",
+    )
+    ablate.add_argument("--scale", type=float, default=1.0, help="factor on the coordinates (default: 1)")
+    ablate.add_argument(
+        "--hand",
+        action="append",
+        default=None,
+        help="built-in hand name or hand spec file (repeatable; default: params candidates.hands)",
+    )
+    ablate.add_argument(
+        "--spheres",
+        type=int,
+        default=None,
+        help="random spheres per hand whose candidates are tried (default: params simulate.spheres_per_object)",
+    )
+    ablate.add_argument(
+        "--cap", type=int, default=None, help="at most this many candidates per planner, a seeded sample (default: all)"
+    )
+    ablate.add_argument(
+        "--physics-trials",
+        type=int,
+        default=50,
+        help="physics checks per hand, variant and planner at most (0 = none, -1 = all; default: %(default)s)",
+    )
+    ablate.add_argument("--seed", type=int, default=None, help="overrides the params seed (default: params seed)")
+    ablate.add_argument(
+        "--workers", type=int, default=None, help="trial processes (default: params simulate.workers; 0 = every core)"
+    )
+    ablate.add_argument("--out", default=None, help="also write the table to this CSV file")
+    ablate.add_argument("--params", default=None, help=PARAMS_HELP)
     args = parser.parse_args(argv)
     if args.command == "objects":
         return _objects(args)
@@ -196,6 +262,8 @@ def main(argv=None):
         return _plan(args)
     if args.command == "batch":
         return _batch(args)
+    if args.command == "ablate":
+        return _ablate(args)
     if args.command == "hands":
         return _hands(args, hands)
     from .bench import run_bench
@@ -255,7 +323,7 @@ def _objects(args):
 
 def _command_params(args):
     """The params file of ``--params`` (or params.yaml here, else the defaults) with the
-    command's ``--spheres`` / ``--baseline`` overrides."""
+    command's ``--spheres`` / ``--baseline`` / ``--checks`` overrides."""
     import dataclasses
 
     params_path = args.params or (PARAMS_FILE if Path(PARAMS_FILE).is_file() else None)
@@ -267,6 +335,8 @@ def _command_params(args):
     }
     if overrides:
         params = dataclasses.replace(params, simulate=dataclasses.replace(params.simulate, **overrides))
+    if getattr(args, "checks", None) is not None:
+        params = dataclasses.replace(params, checks=dataclasses.replace(params.checks, trials=args.checks))
     return params
 
 
@@ -349,6 +419,109 @@ def _plan(args):
         brief["baseline_force_closure_rate"] = result["baseline"]["force_closure_rate"]
     print(json.dumps(brief))
     print(f"wrote {args.out}/summary.json")
+
+
+def _ablate(args):
+    from .ablate import ablate
+    from .artefacts import atomic_write
+    from .errors import BadParamsError
+    from .hands import get_hand
+    from .pool import default_workers
+
+    if (args.mesh is None) == (args.from_data is None):
+        raise BadParamsError("ablate: give a MESH or --from-data DIR (one of them)")
+    for name, value in (("--spheres", args.spheres), ("--cap", args.cap)):
+        if value is not None and value < 1:
+            raise BadParamsError(f"ablate: {name} must be >= 1, got {value}")
+    if args.physics_trials < -1:
+        raise BadParamsError(f"ablate: --physics-trials must be -1, 0 or a count, got {args.physics_trials}")
+    params = _command_params(args)
+    seed = params.seed if args.seed is None else args.seed
+    names = args.hand or list(params.candidates.hands)
+    hands = [get_hand(name) for name in names]  # an unknown hand fails here, in one line
+    workers = default_workers(params.simulate.workers if args.workers is None else args.workers)
+    source, surface, candidates, parts = _ablation_inputs(args, params, seed, names)
+    print(f"ablate {source}: {', '.join(hand.name for hand in hands)}", file=sys.stderr)
+    with progress_bar("ablate") as progress:
+        table = ablate(
+            surface,
+            candidates,
+            hands,
+            params,
+            seed=seed,
+            cap=args.cap,
+            physics_trials=args.physics_trials,
+            workers=workers,
+            parts=parts,
+            progress=progress,
+        )
+    print(_ablation_text(table))
+    if args.out:
+        text = table.to_csv(index=False, float_format="%.4f").encode()
+        atomic_write(args.out, lambda stream: stream.write(text))
+        print(f"wrote {args.out}")
+
+
+def _ablation_inputs(args, params, seed, hands):
+    """(source text, SurfaceSamples, candidates table, convex parts or None) of the ablation:
+    read from ``--from-data`` or computed by the chain up to the candidates."""
+    if args.from_data:
+        import pandas as pd
+
+        from .artefacts import SurfaceSamples, read_table
+        from .hands import get_hand
+
+        folder = Path(args.from_data)
+        surface = SurfaceSamples.load(folder / "surface.npz")
+        candidates = pd.concat(
+            [read_table(folder / get_hand(hand).name / "candidates.parquet") for hand in hands], ignore_index=True
+        )
+        parts = None
+        if (folder / "parts.npz").is_file():  # the decompose stage's convex parts
+            from .physics import ConvexParts
+
+            parts = ConvexParts.load(folder / "parts.npz").parts
+        return str(folder), surface, candidates, parts
+    from .plan import run_chain
+
+    artefacts, _ = run_chain(
+        args.mesh,
+        params,
+        scale=args.scale,
+        seed=seed,
+        hands=hands,
+        simulate=False,
+        progress=lambda line: print(line, file=sys.stderr),
+    )
+    return args.mesh, artefacts["sample"], artefacts["candidates"], None
+
+
+def _ablation_text(table):
+    """The ablation table as aligned text: rates and changes in points."""
+    if not len(table):
+        return "no trials (no candidates for these hands)"
+    shown = table[
+        [
+            "hand",
+            "setting",
+            "planner",
+            "trials",
+            "force_closure_pct",
+            "force_closure_delta",
+            "physics_checked",
+            "physics_success_pct",
+            "physics_success_delta",
+        ]
+    ].rename(
+        columns={
+            "force_closure_pct": "fc %",
+            "force_closure_delta": "fc +-",
+            "physics_checked": "checked",
+            "physics_success_pct": "held %",
+            "physics_success_delta": "held +-",
+        }
+    )
+    return shown.to_string(index=False, float_format=lambda value: f"{value:.1f}", na_rep="-")
 
 
 if __name__ == "__main__":

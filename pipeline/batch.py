@@ -47,6 +47,10 @@ SUMMARY_COLUMNS = {
     "mean_epsilon": float,
     "baseline_trials": "Int64",
     "baseline_force_closure_rate": float,
+    "physics_success_rate": float,
+    "baseline_physics_success_rate": float,
+    "robust_fc": float,
+    "baseline_robust_fc": float,
     "seconds": float,
 }
 DONE = ("ok", "error")  # outcomes that the same key would give again; "failed" is retried
@@ -79,7 +83,7 @@ def object_key(path, *, scale, seed, hands, params):
     """Content key of one object's batch run: the mesh bytes and everything the chain reads."""
     used = {
         section: dataclasses.asdict(getattr(params, section))
-        for section in ("sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate")
+        for section in ("sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate", "checks")
     }
     used["candidates"].pop("hands")
     used["simulate"].pop("workers")  # results do not depend on it
@@ -97,6 +101,8 @@ def plan_object(name, path, *, scale, seed, hands, params):
     """Run the chain on one mesh, one process: (summary row, trials table or None).
 
     A :class:`PipelineError` (a refused mesh, ...) gives an ``error`` row with its message."""
+    from .grasp_checks import summary as checks_summary
+    from .grasp_checks import with_checks
     from .plan import run_chain
     from .trials import summary
 
@@ -107,7 +113,7 @@ def plan_object(name, path, *, scale, seed, hands, params):
     except PipelineError as err:
         return {**row, "status": "error", "reason": str(err), "seconds": time.perf_counter() - start}, None
     trials = artefacts["trials"]
-    result = summary(trials)
+    result, checked = summary(trials), checks_summary(artefacts["check"])
     mat, baseline = result, result["baseline"]  # no trials: NaN rates, not 0 % (trials.summarise)
 
     row.update(
@@ -122,10 +128,15 @@ def plan_object(name, path, *, scale, seed, hands, params):
         mean_epsilon=mat["mean_epsilon"],
         baseline_trials=baseline["trials"],
         baseline_force_closure_rate=baseline["force_closure_rate"],
+        physics_success_rate=checked["mat"]["physics_success_rate"],
+        baseline_physics_success_rate=checked["baseline"]["physics_success_rate"],
+        robust_fc=checked["mat"]["robust_fc"],
+        baseline_robust_fc=checked["baseline"]["robust_fc"],
         seconds=time.perf_counter() - start,
     )
     if not len(trials):  # no candidate fits a hand: no trials file (an empty table would have other column types)
         return row, None
+    trials = with_checks(trials, artefacts["check"])  # unchecked trials: "" and missing values
     return row, trials.assign(object=name)[["object", *trials.columns]]
 
 

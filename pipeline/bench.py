@@ -64,7 +64,7 @@ def _measure(surface, method, repeats):
 
 def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, trials=512, only=None, out=print):
     """Print (and optionally save) the benchmark tables (``only``: one of medial, symmetry,
-    trials, recording, batch); returns {table: rows}."""
+    trials, checks, recording, batch); returns {table: rows}."""
     tables = {}
     if only in (None, "medial"):
         tables["medial"] = run_medial_bench(sizes=sizes, repeats=repeats, out=out)
@@ -74,6 +74,9 @@ def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, trial
         out("")
     if only in (None, "trials"):
         tables["trials"] = run_trial_bench(trials=trials, out=out)
+        out("")
+    if only in (None, "checks"):
+        tables["checks"] = run_check_bench(out=out)
         out("")
     if only in (None, "recording"):
         tables["recording"] = run_recording_bench(repeats=repeats, out=out)
@@ -280,6 +283,75 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
             + ", ".join(f"{a} | {b}: {n}" for (a, b), n in sorted(against.items()))
         )
     out("paper: 0.5 s per trial (one core, 2011); target >= 300 trials/s per core")
+    return rows
+
+
+def run_check_bench(*, trials=256, physics=100, robust=32, samples=16, out=print):
+    """The checks of issue 15 beside plain trials, one core, on the bench's duck: per hand,
+    ``trials`` random MAT candidates through the engine (trials/s), the physics check of up to
+    ``physics`` of those that closed on the duck (checks/s; and how many held, split by force
+    closure), and robust force closure of the first ``robust`` (``samples`` noisy copies each:
+    copies/s). Also the duck's V-HACD time. Returns the rows."""
+    from .grasp_checks import CLOSED
+    from .physics import PhysicsCheck, PhysicsSettings, decompose
+    from .robust import robust_force_closure
+
+    artefacts, faces = trial_bench_chain()
+    surface, symmetry = artefacts["sample"], artefacts["classify"]
+    settings = SimulateParams().world_settings()
+    start = time.perf_counter()
+    parts = decompose(surface)
+    vhacd = time.perf_counter() - start
+    out(
+        f"checks on the duck ({faces} triangles; V-HACD {vhacd:.1f} s, {len(parts.part_start) - 1} parts), one core: "
+        f"{trials} trials, physics on <= {physics} closed hands, {samples} noisy copies of {robust} trials"
+    )
+    out(
+        f"{'hand':13} {'trials/s':>9} {'checks/s':>9} {'ms/check':>9} {'copies/s':>9}  held: force closure, other closed"
+    )
+    rows = []
+    for name, hand in HANDS.items():
+        table = generate(symmetry, hand)
+        table = table.sample(min(trials, len(table)), random_state=0).reset_index(drop=True)
+        targets = (vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), list(table.preshape))
+        engine = GraspEngine(surface, hand, **settings)
+        engine.run(*(values[:2] for values in targets))  # numba's kernels load on their first call
+        start = time.perf_counter()
+        results = engine.run(*targets)
+        trial_rate = len(results) / (time.perf_counter() - start)
+        closed = [result for result in results if result.outcome in CLOSED][:physics]
+        check = PhysicsCheck(
+            surface.vertices, surface.faces, hand, engine.model, parts=parts.parts, settings=PhysicsSettings.defaults()
+        )
+        start = time.perf_counter()
+        verdicts = [check.check(r.base_position, r.base_orientation, r.joint_positions) for r in closed]
+        check_rate = len(closed) / max(time.perf_counter() - start, 1e-9)
+        check.close()
+        seeds = np.random.SeedSequence(0).spawn(robust)
+        start = time.perf_counter()
+        robust_force_closure(engine, *(values[:robust] for values in targets), seeds, samples=samples)
+        copy_rate = robust * samples / (time.perf_counter() - start)
+        held = {
+            kind: f"{sum(v.success for v, r in zip(verdicts, closed) if (r.outcome == 'force_closure') == fc)}/"
+            f"{sum((r.outcome == 'force_closure') == fc for r in closed)}"
+            for kind, fc in (("force_closure", True), ("other", False))
+        }
+        rows.append(
+            dict(
+                hand=name,
+                trials_per_s=round(trial_rate, 1),
+                checks_per_s=round(check_rate, 1),
+                ms_per_check=round(1000 / check_rate, 2) if check_rate else None,
+                copies_per_s=round(copy_rate, 1),
+                held=held,
+                vhacd_s=round(vhacd, 2),
+            )
+        )
+        out(
+            f"{name:13} {trial_rate:9.1f} {check_rate:9.1f} {1000 / check_rate:9.2f} {copy_rate:9.1f}  "
+            f"{held['force_closure']}, {held['other']}"
+        )
+    out("target: <= 50 ms of CPU per physics check")
     return rows
 
 

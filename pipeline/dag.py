@@ -35,8 +35,10 @@ ARTEFACTS = {
     "candidates": "candidates.parquet",
     "trials": "trials.parquet",
     "contacts": "contacts.parquet",
+    "parts": "parts.npz",
+    "checks": "checks.parquet",
 }
-PER_HAND = ("candidates", "trials", "contacts")
+PER_HAND = ("candidates", "trials", "contacts", "checks")
 
 
 @dataclass(frozen=True)
@@ -112,6 +114,23 @@ STAGES = (
         per_hand=True,
         recording="grasps.rrd",
     ),
+    Stage(
+        "decompose",
+        ("surface",),
+        ("parts",),
+        ("checks.vhacd_resolution",),
+        "pipeline.physics:decompose",
+    ),
+    Stage(
+        "check",
+        ("surface", "trials", "parts"),
+        ("checks",),
+        ("seed", "simulate", "checks"),
+        "pipeline.grasp_checks:check_trials",
+        "checks",
+        args=("hand",),
+        per_hand=True,
+    ),
 )
 #: the report reads every run's artefacts under ``data/`` (it is not per run)
 REPORT = Stage(
@@ -126,6 +145,7 @@ REPORT = Stage(
         "simulate.spheres_per_object",
         "simulate.mu",
         "simulate.cone_edges",
+        "checks.trials",
         "report",
     ),
 )

@@ -220,6 +220,13 @@ class SimulateParams:
     from 80 to 31 % force closure on the same closed hands."""
     grid_cells: int = 40
     """Nodes of the object's signed distance grid along its longest side (steps only)."""
+    approach_to_contact: bool = True
+    """After the retreat, come back until a link is within the contact tolerance (OpenRAVE's
+    approach to contact); false: close where the retreat left the hand clear, as the paper's
+    Simox port did (``approach_m`` 0)."""
+    palm_contacts: bool = True
+    """Grade the palm's (the base link's) contacts with the fingers'; false: drop them before
+    the quality, so a hand touching with its palm alone is ``no_contact``."""
     workers: int = 0
     """Trial processes; 0 = every core."""
 
@@ -261,6 +268,8 @@ class SimulateParams:
             "must be 0 (every corner) or >= 2",
         )
         _require(self.grid_cells >= 8, "simulate", "grid_cells", "must be >= 8")
+        for key in ("approach_to_contact", "palm_contacts"):
+            _require(isinstance(getattr(self, key), bool), "simulate", key, "must be true or false")
         _require(self.workers >= 0, "simulate", "workers", "must be >= 0")
 
     def world_settings(self):
@@ -271,6 +280,82 @@ class SimulateParams:
             for field in dataclasses.fields(self)
             if field.name not in ("spheres_per_object", "baseline_trials", "workers")
         }
+
+
+@dataclass(frozen=True)
+class CheckParams:
+    """How well the analytic score predicts holding (stages ``decompose`` and ``check``, issue
+    15): a seeded sample of each run's trials gets the pybullet lift-and-shake check
+    (:mod:`pipeline.physics`) and robust force closure (:mod:`pipeline.robust`)."""
+
+    trials: int = 50
+    """Trials checked per run (object, scale, hand) and planner, a seeded sample; -1 = every
+    trial, 0 = none (the checks table is empty)."""
+    physics: bool = True
+    """The lift-and-shake check (``physics_*`` columns); false: they are empty."""
+    robust_samples: int = 16
+    """Perturbed copies per checked trial for ``robust_fc`` and ``robust_epsilon``; 0 = none."""
+    pose_sigma_m: float = 0.005
+    """Robust force closure: standard deviation of the grasp point's error per axis."""
+    angle_sigma_rad: float = 0.05
+    """... of the hand orientation's error (rotation vector, per axis)."""
+    mu_sigma: float = 0.1
+    """... of the friction coefficient (about ``simulate.mu``, at least 0)."""
+    density_kg_m3: float = 500.0
+    """The object's density: its mass is the mesh volume times this (500: a wooden or hollow
+    plastic part; a 4 cm cube weighs 32 g)."""
+    vhacd_resolution: int = 1000000
+    """Voxels of pybullet's V-HACD convex decomposition (the dynamic object's shape)."""
+    open_back: float = 0.002
+    """The check starts from the trial's closed joints opened by this (rad or m per joint)..."""
+    squeeze: float = 0.01
+    """... and drives them to the closed joints closed further by this, each joint's servo
+    limited to the hand's ``joint_effort``."""
+    settle_s: float = 0.25
+    """Time the fingers squeeze the weightless object before the lift."""
+    lift_s: float = 0.5
+    """Time under gravity (a 10 cm lift at 0.2 m/s)."""
+    shake_g: float = 1.0
+    """Each shake: a force of this many times the object's weight along +-x, +-y, +-z ..."""
+    shake_s: float = 0.2
+    """... for this long each."""
+    slip_m: float = 0.02
+    """Held: the object moved at most this far relative to the hand (centre of mass) ..."""
+    slip_rad: float = 0.35
+    """... and turned at most this much (20 degrees), still touching the hand."""
+
+    def __post_init__(self):
+        _require(self.trials >= -1, "checks", "trials", "must be -1 (every trial), 0 (none) or a count")
+        _require(self.robust_samples >= 0, "checks", "robust_samples", "must be >= 0")
+        for key in (
+            "pose_sigma_m",
+            "angle_sigma_rad",
+            "mu_sigma",
+            "open_back",
+            "squeeze",
+            "lift_s",
+            "shake_g",
+            "shake_s",
+        ):
+            _require(getattr(self, key) >= 0, "checks", key, "must be >= 0")
+        for key in ("density_kg_m3", "settle_s", "slip_m", "slip_rad"):
+            _require(getattr(self, key) > 0, "checks", key, "must be > 0")
+        _require(self.vhacd_resolution >= 10000, "checks", "vhacd_resolution", "must be >= 10000")
+
+    def physics_settings(self, mu):
+        """Keyword arguments of :class:`pipeline.physics.PhysicsSettings` (friction ``mu``)."""
+        names = (
+            "density_kg_m3",
+            "open_back",
+            "squeeze",
+            "settle_s",
+            "lift_s",
+            "shake_g",
+            "shake_s",
+            "slip_m",
+            "slip_rad",
+        )
+        return {"mu": mu, **{name: getattr(self, name) for name in names}}
 
 
 @dataclass(frozen=True)
@@ -314,6 +399,7 @@ class Params:
     classify: ClassifyParams = field(default_factory=ClassifyParams)
     candidates: CandidatesParams = field(default_factory=CandidatesParams)
     simulate: SimulateParams = field(default_factory=SimulateParams)
+    checks: CheckParams = field(default_factory=CheckParams)
     report: ReportParams = field(default_factory=ReportParams)
 
 

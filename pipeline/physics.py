@@ -8,11 +8,14 @@ pose and joints) and runs pybullet's dynamics (headless, its own client):
   :func:`convex_parts`: pybullet's built-in V-HACD), its mass its mesh volume times
   ``density_kg_m3``, its friction ``mu``;
 - the hand is held still, fixed in the world, every joint (mimics included) under position
-  control with a force limit: it starts opened by ``open_back`` (rad or m along each joint's
-  closing direction) and is driven toward the closed pose closed further by ``squeeze``,
-  with the object weightless, for ``settle_s``;
-- then the lift and the shake, in the hand's frame: lifting the hand at a constant speed is
-  the object under gravity (``lift_s``, the time a 10 cm lift takes), and each shake along
+  control limited to the hand's ``joint_effort`` (N or N m): it starts opened by ``open_back``
+  (rad or m along each joint's closing direction) and is driven toward the closed pose closed
+  further by ``squeeze`` for ``settle_s``, the object held where it is meanwhile (a fixed
+  constraint, as a table holds an object while a hand closes on it: a free object is pushed
+  away by the first finger to touch it);
+- then the object is let go, and the lift and the shake, in the hand's frame: lifting the hand
+  at a constant speed is the object under gravity (``lift_s``, the time a 10 cm lift takes),
+  and each shake along
   +-x, +-y, +-z (world) is a force of ``shake_g`` times the object's weight, ``shake_s`` each,
   on top of gravity, as DexGraspBench applies external forces.
 
@@ -21,24 +24,18 @@ link touches it at the end), ``slipped`` (it moved more than ``slip_m`` or turne
 ``slip_rad`` relative to the hand, still touching), ``held``; ``slip_m`` is how far its centre
 moved from where the squeeze left it.
 
-Status (session 13): a core, not yet in the stages. Exact on convex objects (the tests), but
-not yet a judge of real meshes. On the bench's duck (129 g at 500 kg/m^3) few force-closure
-trials are held (ARMAR-III 0 of 59, Barrett 1 of 30, the jaw 1 of 39, franka 7 of 8), for two
-reasons found so far:
+The object's convex parts are an artefact of their own (:class:`ConvexParts`, stage
+``decompose``), computed once per object and scale; the checks of a run's trials are
+:func:`pipeline.grasp_checks.check_trials` (stage ``check``).
 
-- the convex parts (V-HACD, 5 on the duck) bulge about 2 mm past the surface (the body's
-  bounds against the mesh's), where the kinematic trial closed the hand within 2 mm of it:
-  55 of 60 closed Barrett hands overlap them by more than 1 mm as closed (opened by 0.05 rad
-  first, the hands no longer overlap, but the outcomes hardly change);
-- the squeeze pushes the weightless object out of the hand: a jaw trial with force closure had
-  the duck moved 10 mm by the pads within 0.08 s, before gravity was on. A kinematic force
-  closure counts every point within the 2 mm tolerance; the pads squeezing at 20 N touch only
-  the first points, whose normals need not oppose. Slower fingers (0.3 rad/s) did not change it.
-
-Next: squeeze to just past contact with a force in proportion to the object's weight, let the
-object rest against the hand first, and a tighter decomposition; then compare with force
-closure per object before it joins the stages. Cost on the duck: 4-19 ms of CPU per check (jaw
-3.9, Barrett 8.2, franka 9.0, ARMAR-III 18.5), plus about 3 s of V-HACD per object.
+What it shows on real meshes (session 14, the bench's duck, 129 g): the parts bulge about
+1.5 mm past the mesh (V-HACD voxels), so a closed hand starts within -0.5..+0.6 mm of them.
+Most grasps the kinematic trial calls force closure drop the duck (docs/checks.md): two
+opposing fingertips let it turn about the line through them under gravity (a point contact
+resists no torque about its normal), a third contact pressing from above carries none of the
+weight, and pads squeezing a curved side push it out (the kinematic force closure counts every
+point within the 2 mm tolerance; the squeezing pads touch only the first ones). Cost: 7-30 ms
+of CPU per check (jaw fastest, ARMAR-III slowest), about 3.5 s of V-HACD per object.
 """
 
 import os
@@ -48,26 +45,35 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .artefacts import _Artefact, content_key
 from .bullet import BulletClient, load_hand, pybullet
 from .simulation import mass_properties
 
 
 @dataclass(frozen=True)
 class PhysicsSettings:
-    """How the check runs; see the module docstring. SI units."""
+    """How the check runs: the ``checks`` params of the same names (their defaults and
+    documentation live in :class:`pipeline.params.CheckParams`), the friction ``mu`` of the
+    trials, and the simulation's time step. SI units."""
 
-    density_kg_m3: float = 500.0
-    mu: float = 0.5
-    force_limit_n: float = 20.0
-    open_back: float = 0.002
-    squeeze: float = 0.01
-    settle_s: float = 0.25
-    lift_s: float = 0.5
-    shake_g: float = 1.0
-    shake_s: float = 0.2
-    slip_m: float = 0.02
-    slip_rad: float = 0.35
+    mu: float
+    density_kg_m3: float
+    open_back: float
+    squeeze: float
+    settle_s: float
+    lift_s: float
+    shake_g: float
+    shake_s: float
+    slip_m: float
+    slip_rad: float
     timestep_s: float = 1.0 / 240.0
+
+    @classmethod
+    def defaults(cls):
+        """The settings of the default params."""
+        from .params import CheckParams, SimulateParams
+
+        return cls(**CheckParams().physics_settings(SimulateParams().mu))
 
 
 @dataclass(frozen=True)
@@ -99,15 +105,16 @@ def _quietly(action):
         os.close(devnull)
 
 
-def convex_parts(vertices, faces, *, client):
+def convex_parts(vertices, faces, *, client, resolution=1000000):
     """The convex parts (list of (v, 3) float vertex arrays, m) of a closed mesh, by pybullet's
-    V-HACD (deterministic for the same mesh)."""
+    V-HACD with ``resolution`` voxels (deterministic for the same mesh)."""
     import trimesh
 
     with tempfile.TemporaryDirectory() as folder:
         source, target = os.path.join(folder, "object.obj"), os.path.join(folder, "parts.obj")
         trimesh.Trimesh(vertices, faces, process=False).export(source)
-        _quietly(lambda: pybullet.vhacd(source, target, os.path.join(folder, "log.txt"), physicsClientId=client))
+        log = os.path.join(folder, "log.txt")
+        _quietly(lambda: pybullet.vhacd(source, target, log, resolution=resolution, physicsClientId=client))
         parts, current = [], []
         with open(target) as stream:
             for line in stream:
@@ -119,6 +126,42 @@ def convex_parts(vertices, faces, *, client):
         if current:
             parts.append(np.array(current))
     return parts
+
+
+@dataclass(frozen=True)
+class ConvexParts(_Artefact):
+    """An object's convex decomposition (``parts.npz``, stage ``decompose``): ``vertices``
+    (v, 3) float64 m, the parts' vertices one part after another, part k in rows
+    ``part_start[k]:part_start[k + 1]`` ((p + 1,) int64); ``mass_kg`` is not stored (it depends
+    on the density)."""
+
+    vertices: np.ndarray
+    part_start: np.ndarray
+    key: str
+
+    KIND = "convex_parts"
+    ARRAYS = {"vertices": (np.float64, 3), "part_start": (np.int64, None)}
+
+    @property
+    def parts(self):
+        """The parts as a list of (v_k, 3) arrays."""
+        return [self.vertices[a:b] for a, b in zip(self.part_start[:-1], self.part_start[1:])]
+
+
+def decompose(surface, *, vhacd_resolution=1000000):
+    """The :class:`ConvexParts` of ``surface``'s mesh (a SurfaceSamples with faces), by V-HACD
+    with ``vhacd_resolution`` voxels."""
+    client = BulletClient()
+    try:
+        parts = convex_parts(surface.vertices, surface.faces, client=client.client, resolution=vhacd_resolution)
+    finally:
+        client.close()
+    sizes = [len(part) for part in parts]
+    return ConvexParts(
+        np.concatenate(parts) if parts else np.empty((0, 3)),
+        np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+        key=content_key("decompose", {"vhacd_resolution": vhacd_resolution}, surface.key),
+    )
 
 
 def mesh_volume(vertices, faces):
@@ -138,11 +181,15 @@ class PhysicsCheck(BulletClient):
         The hand's model (joint order, closing directions, mimics).
     parts : list of (v, 3) float, optional
         The object's convex parts (:func:`convex_parts`; computed here if not given).
-    settings : PhysicsSettings
+    settings : PhysicsSettings, optional
+        Default: :meth:`PhysicsSettings.defaults`. The servos' force limit is the hand's
+        ``joint_effort``.
     """
 
-    def __init__(self, vertices, faces, hand, model, *, parts=None, settings=PhysicsSettings()):
-        self.settings, self.model = settings, model
+    def __init__(self, vertices, faces, hand, model, *, parts=None, settings=None):
+        self.settings, self.model = settings or PhysicsSettings.defaults(), model
+        self.effort = hand.joint_effort
+        settings = self.settings
         super().__init__()
         call = self._call
         call(pybullet.setTimeStep, settings.timestep_s)
@@ -190,7 +237,7 @@ class PhysicsCheck(BulletClient):
                 self.joint_index[name],
                 pybullet.POSITION_CONTROL,
                 targetPosition=value,
-                force=self.settings.force_limit_n,
+                force=self.effort,
             )
 
     def _touching(self):
@@ -222,7 +269,21 @@ class PhysicsCheck(BulletClient):
         for name, value in model.joint_values(start).items():
             call(pybullet.resetJointState, self.hand, self.joint_index[name], value)
         self._drive(np.clip(closed + settings.squeeze * direction, model.lower, model.upper))
+        # the object is held where it is while the fingers squeeze (as a table holds it while a
+        # hand closes): a weightless free object is pushed out by the first finger to touch it
+        anchor = call(
+            pybullet.createConstraint,
+            self.object,
+            -1,
+            -1,
+            -1,
+            pybullet.JOINT_FIXED,
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0],
+            self.centre,
+        )
         self._steps(settings.settle_s)
+        call(pybullet.removeConstraint, anchor)
         if not self._touching():
             return PhysicsResult("no_grasp")
         hand_pose = call(pybullet.getBasePositionAndOrientation, self.hand)

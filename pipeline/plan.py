@@ -16,6 +16,7 @@ from .stage_io import warning_line
 from .symmetry import CLASSES, INTERIOR
 from .pool import default_workers
 from .trials import summary as trial_summary
+from .grasp_checks import summary as checks_summary
 
 #: file of each artefact a chain run makes, by its key in :func:`run_chain`'s result: the stage
 #: that makes it (``trials`` and ``contacts`` by their own names), and its table name; files named
@@ -51,7 +52,8 @@ def run_chain(
     hands : list of str, optional
         Overrides ``params.candidates.hands`` (built-in names or hand spec paths).
     simulate : bool
-        Also run the grasp trials (``params.simulate``): adds ``trials`` and ``contacts``.
+        Also run the grasp trials (``params.simulate``) and their checks (``params.checks``):
+        adds ``trials``, ``contacts``, ``decompose`` (the convex parts) and ``check``.
     workers : int, optional
         Overrides ``params.simulate.workers``.
     progress : callable(str), optional
@@ -88,6 +90,13 @@ def run_chain(
             workers=default_workers(params.simulate.workers if workers is None else workers),
             settings=params.simulate.world_settings(),
             progress=trial_progress,
+        ),
+        "decompose": dict(vhacd_resolution=params.checks.vhacd_resolution),
+        "check": dict(
+            hands=hand_specs,
+            seed=seed,
+            settings=params.simulate.world_settings(),
+            workers=default_workers(params.simulate.workers if workers is None else workers),
         ),
     }
     made, artefacts, timings = {}, {}, {}
@@ -137,6 +146,7 @@ def summary(artefacts, timings, *, source, scale, seed, hands=(), warnings=()):
         "classes": dict(zip(CLASSES, np.bincount(artefacts["classify"].class_id, minlength=len(CLASSES)).tolist())),
         "candidates": candidates,
         **(trial_summary(artefacts["trials"]) if "trials" in artefacts else {}),
+        **({"checks": checks_summary(artefacts["check"])} if "check" in artefacts else {}),
         "keys": {stage: artefact.key for stage, artefact in artefacts.items() if hasattr(artefact, "key")},
         "timings_s": {stage: round(seconds, 4) for stage, seconds in timings.items()},
         "warnings": list(warnings)

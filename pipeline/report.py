@@ -8,24 +8,27 @@ Markdown text; the ``report`` stage does the reading and writing.
 import numpy as np
 import pandas as pd
 
+from .grasp_checks import CHECK_COLUMNS, with_checks
 from .simulation import OUTCOMES
 
 HAND_TITLES = {"armar3": "ARMAR-III", "barrett": "Barrett", "parallel_jaw": "parallel jaw"}
 KEYS = ["object", "scale", "hand"]
 
 
-def combine(tables):
+def combine(tables, checks=None):
     """One trials table from ``{(object, scale, hand): trials}``, with ``object``, ``scale`` (float)
-    and ``hand`` first; the per-run tables' columns follow (see :mod:`pipeline.trials`)."""
+    and ``hand`` first; the per-run tables' columns follow (see :mod:`pipeline.trials`), then
+    the check columns of the checked trials from ``checks`` (the same keys: the checks tables of
+    :mod:`pipeline.grasp_checks`; see :func:`pipeline.grasp_checks.with_checks`)."""
     frames = []
     for (name, scale, hand), trials in tables.items():
-        frame = trials.drop(columns=["hand"], errors="ignore").copy()
+        frame = with_checks(trials, (checks or {}).get((name, scale, hand))).drop(columns=["hand"], errors="ignore")
         frame.insert(0, "hand", hand)
         frame.insert(0, "scale", float(scale))
         frame.insert(0, "object", name)
         frames.append(frame)
     if not frames:
-        return pd.DataFrame(columns=KEYS + ["planner", "outcome", "epsilon"])
+        return pd.DataFrame(columns=KEYS + ["planner", "outcome", "epsilon", *CHECK_COLUMNS])
     combined = pd.concat(frames, ignore_index=True)
     combined["outcome"] = pd.Categorical(combined.outcome.astype(str), categories=OUTCOMES)
     return combined
@@ -45,23 +48,36 @@ def results(trials, runs):
     """
     index = pd.MultiIndex.from_tuples([(name, float(scale), hand) for name, scale, hand in runs], names=KEYS)
     closed = trials.outcome == "force_closure"
-    grouped = trials.assign(closed=closed, closed_epsilon=trials.epsilon.where(closed)).groupby(
-        KEYS + ["planner"], observed=True
-    )
+    held = trials.physics_success.astype(float)  # NaN where unchecked: the means are over the checked
+    grouped = trials.assign(
+        closed=closed, closed_epsilon=trials.epsilon.where(closed), held=held, checked=held.notna()
+    ).groupby(KEYS + ["planner"], observed=True)
     table = pd.DataFrame(
         {
             "trials": grouped.size(),
             "force_closure_pct": 100.0 * grouped.closed.mean(),
             "mean_epsilon": grouped.closed_epsilon.mean(),
+            "checked": grouped.checked.sum(),
+            "physics_success_pct": 100.0 * grouped.held.mean(),
+            "robust_fc_pct": 100.0 * grouped.robust_fc.mean(),
         }
     ).unstack("planner")
     frame = pd.DataFrame(index=index)
     for planner in ("mat", "baseline"):
-        for column in ("trials", "force_closure_pct", "mean_epsilon"):
+        for column in (
+            "trials",
+            "force_closure_pct",
+            "mean_epsilon",
+            "checked",
+            "physics_success_pct",
+            "robust_fc_pct",
+        ):
             values = table[(column, planner)] if (column, planner) in table.columns else pd.Series(dtype=float)
             frame[f"{planner}_{column}"] = values.reindex(index)
     frame["mat_trials"] = frame.mat_trials.fillna(0).astype(int)
     frame["baseline_trials"] = frame.baseline_trials.fillna(0).astype(int)
+    frame["mat_checked"] = frame.mat_checked.fillna(0).astype(int)
+    frame["baseline_checked"] = frame.baseline_checked.fillna(0).astype(int)
     mat = trials[trials.planner == "mat"]
     outcomes = mat.groupby(KEYS, observed=True).outcome.value_counts().unstack(fill_value=0)
     for outcome in OUTCOMES:
@@ -77,19 +93,27 @@ def metrics(trials, table):
 
     def rates(frame):
         closed = frame.outcome == "force_closure"
+        held = frame.physics_success.dropna().astype(float)
+        robust = frame.robust_fc.dropna()
         return {
             "force_closure_rate": round(float(closed.mean()), 4) if len(frame) else float("nan"),
             "trials": int(len(frame)),
+            "physics_success_rate": round(float(held.mean()), 4) if len(held) else float("nan"),
+            "robust_fc": round(float(robust.mean()), 4) if len(robust) else float("nan"),
+            "checked": int(len(held)),
         }
 
     out = {planner: rates(trials[trials.planner == planner]) for planner in ("mat", "baseline")}
-    for key, label in (("hand", "per_hand"), ("scale", "per_scale")):
-        out[label] = {
-            str(value): {
-                planner: rates(group[group.planner == planner])["force_closure_rate"] for planner in ("mat", "baseline")
+    for key in ("hand", "scale"):
+        for rate, prefix in (
+            ("force_closure_rate", ""),
+            ("physics_success_rate", "physics_"),
+            ("robust_fc", "robust_fc_"),
+        ):
+            out[f"{prefix}per_{key}"] = {
+                str(value): {planner: rates(group[group.planner == planner])[rate] for planner in ("mat", "baseline")}
+                for value, group in trials.groupby(key, sort=True)
             }
-            for value, group in trials.groupby(key, sort=True)
-        }
     compared = table.dropna(subset=["mat_force_closure_pct", "baseline_force_closure_pct"])
     out["runs_compared"] = int(len(compared))
     out["runs_mat_above_baseline"] = int((compared.mat_force_closure_pct > compared.baseline_force_closure_pct).sum())
@@ -98,12 +122,18 @@ def metrics(trials, table):
 
 def plot_tables(table, trials, *, bins=20):
     """Tables for ``dvc plots``: from :func:`results`' ``table``, the force-closure % of each run
-    (``run`` = "object xscale hand", 0 where there were no trials) per planner; from ``trials``,
+    (``run`` = "object xscale hand", 0 where there were no trials) per planner, with the physics
+    success % and the mean robust force closure (%) of its checked trials (empty: none); from ``trials``,
     the epsilon histograms of the force-closure trials (counts per bin over [0, largest epsilon])."""
     run = table.object + " x" + table.scale.map("{:g}".format) + " " + table.hand
     force_closure = {
         planner: pd.DataFrame(
-            {"run": run, "force_closure_pct": table[f"{planner}_force_closure_pct"].fillna(0.0).round(2)}
+            {
+                "run": run,
+                "force_closure_pct": table[f"{planner}_force_closure_pct"].fillna(0.0).round(2),
+                "physics_success_pct": table[f"{planner}_physics_success_pct"].round(2),
+                "robust_fc_pct": table[f"{planner}_robust_fc_pct"].round(2),
+            }
         )
         for planner in ("mat", "baseline")
     }
@@ -116,11 +146,22 @@ def plot_tables(table, trials, *, bins=20):
     return force_closure, histogram
 
 
+def calibration_plots(calibration):
+    """``{score: table}`` for ``dvc plots`` from :func:`calibration`: per bin, its edges and each
+    planner's physics success % (empty where no trial was checked)."""
+    plots = {}
+    for score, rows in calibration.groupby("score", sort=False):
+        wide = rows.pivot(index=["bin", "low", "high"], columns="planner", values="physics_success_pct")
+        plots[score] = wide.reindex(columns=["mat", "baseline"]).round(2).reset_index()
+    return plots
+
+
 def timing_table(timings):
     """Per-stage wall time from ``[{"stage", "seconds", "process_seconds", "record_seconds"}, ...]``:
     runs, total, median and largest seconds of the work, the part of it spent recording (.rrd,
     rerun's import included), and the total of whole processes (imports included), in pipeline order."""
-    order = ["sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate", "report"]
+    order = ["sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate", "decompose", "check"]
+    order.append("report")
     frame = pd.DataFrame(timings, columns=["stage", "seconds", "process_seconds", "record_seconds"])
     frame["process_seconds"] = frame.process_seconds.fillna(frame.seconds)
     frame["record_seconds"] = frame.record_seconds.fillna(0.0)
@@ -141,9 +182,12 @@ def _pct(value, count):
 
 def table_one(table, planner):
     """Markdown of the paper's Table I layout for one planner: a row per object, a column per
-    hand and scale, cells the force-closure % ("-": no trials, the object had no candidates)."""
+    hand and scale, cells the force-closure % ("-": no trials, the object had no candidates);
+    when any trial was checked, followed by the physics success % and the mean robust force
+    closure (%) of the checked trials in brackets."""
     hands = list(dict.fromkeys(table.hand))
     scales = list(dict.fromkeys(table.scale))
+    checked = bool(table[f"{planner}_checked"].sum()) if f"{planner}_checked" in table.columns else False
     header = (
         "| object | "
         + " | ".join(f"{HAND_TITLES.get(hand, hand)} x{scale:g}" for hand in hands for scale in scales)
@@ -153,13 +197,56 @@ def table_one(table, planner):
     cells = table.set_index(KEYS)
     for name in dict.fromkeys(table.object):
         row = [
-            _pct(cells.loc[key, f"{planner}_force_closure_pct"], cells.loc[key, f"{planner}_trials"])
-            if key in cells.index
-            else ""
+            _cell(cells.loc[key], planner, checked) if key in cells.index else ""
             for key in ((name, scale, hand) for hand in hands for scale in scales)
         ]
         lines.append(f"| {name} | " + " | ".join(row) + " |")
     return "\n".join(lines)
+
+
+def _cell(row, planner, checked):
+    text = _pct(row[f"{planner}_force_closure_pct"], row[f"{planner}_trials"])
+    if checked and row[f"{planner}_checked"]:
+        held, robust = row[f"{planner}_physics_success_pct"], row[f"{planner}_robust_fc_pct"]
+        text += f" ({_pct(held, 1)} / {_pct(robust, 1)})"
+    return text
+
+
+def calibration(trials, *, bins=10):
+    """Physics success of the checked trials against their analytic scores, per planner: a row
+    per ``score`` (``epsilon``: a bin of the trials without force closure, then deciles of the
+    force-closure trials' epsilon over both planners; ``robust_fc``: ``bins`` equal bins of
+    [0, 1]) and bin, with its ``low`` and ``high`` edges, the ``checked`` trials and their
+    ``physics_success_pct`` (NaN when none)."""
+    checked = trials[trials.physics_success.notna()]
+    held = checked.physics_success.astype(float).to_numpy()
+    closed = (checked.outcome == "force_closure").to_numpy()
+    positive = checked.epsilon.to_numpy(float)[closed]
+    edges = np.quantile(positive, np.linspace(0, 1, bins + 1)) if len(positive) else np.zeros(bins + 1)
+    epsilon_bin = np.where(closed, 1 + np.clip(np.searchsorted(edges, checked.epsilon, "right") - 1, 0, bins - 1), 0)
+    robust_edges = np.linspace(0.0, 1.0, bins + 1)
+    robust_bin = np.clip(np.searchsorted(robust_edges, checked.robust_fc.fillna(-1.0), "right") - 1, -1, bins - 1)
+    rows = []
+    for score, numbers, lows, highs in (
+        ("epsilon", epsilon_bin, np.r_[0.0, edges[:-1]], np.r_[0.0, edges[1:]]),
+        ("robust_fc", robust_bin, robust_edges[:-1], robust_edges[1:]),
+    ):
+        for planner in ("mat", "baseline"):
+            mine = (checked.planner == planner).to_numpy()
+            for number in range(len(lows)):
+                inside = mine & (numbers == number)
+                rows.append(
+                    {
+                        "score": score,
+                        "planner": planner,
+                        "bin": number,
+                        "low": float(lows[number]),
+                        "high": float(highs[number]),
+                        "checked": int(inside.sum()),
+                        "physics_success_pct": 100.0 * held[inside].mean() if inside.any() else float("nan"),
+                    }
+                )
+    return pd.DataFrame(rows)
 
 
 def runs_table(table):
@@ -167,20 +254,44 @@ def runs_table(table):
     epsilon, and the MAT trials' outcome counts."""
     lines = [
         "| object | scale | hand | MAT % | baseline % | MAT trials | baseline trials | MAT mean eps "
-        "| baseline mean eps | " + " | ".join(OUTCOMES) + " |",
-        "| --- | ---: | --- |" + " ---: |" * (6 + len(OUTCOMES)),
+        "| baseline mean eps | MAT held % | baseline held % | MAT robust % | baseline robust % | "
+        + " | ".join(OUTCOMES)
+        + " |",
+        "| --- | ---: | --- |" + " ---: |" * (10 + len(OUTCOMES)),
     ]
     for row in table.itertuples(index=False):
         epsilon = [
             ("-" if pd.isna(value) else f"{value:.4f}") for value in (row.mat_mean_epsilon, row.baseline_mean_epsilon)
         ]
         counts = [str(getattr(row, outcome)) for outcome in OUTCOMES]
+        checks = [
+            _pct(getattr(row, f"{planner}_{column}"), getattr(row, f"{planner}_checked"))
+            for column in ("physics_success_pct", "robust_fc_pct")
+            for planner in ("mat", "baseline")
+        ]
         lines.append(
             f"| {row.object} | {row.scale:g} | {row.hand} | {_pct(row.mat_force_closure_pct, row.mat_trials)} "
             f"| {_pct(row.baseline_force_closure_pct, row.baseline_trials)} | {row.mat_trials} "
-            f"| {row.baseline_trials} | {epsilon[0]} | {epsilon[1]} | " + " | ".join(counts) + " |"
+            f"| {row.baseline_trials} | {epsilon[0]} | {epsilon[1]} | " + " | ".join(checks + counts) + " |"
         )
     return "\n".join(lines)
+
+
+def _checks_summary(mat, baseline):
+    if not mat["checked"] and not baseline["checked"]:
+        return []
+
+    def rate(value):
+        return "-" if np.isnan(value) else f"{100 * value:.1f} %"
+
+    return [
+        f"Checked trials (a seeded sample per run and planner, `checks.parquet`): MAT {mat['checked']}, held in "
+        f"the physics check {rate(mat['physics_success_rate'])}, mean robust force closure "
+        f"{rate(mat['robust_fc'])}; baseline {baseline['checked']}, {rate(baseline['physics_success_rate'])} and "
+        f"{rate(baseline['robust_fc'])}. Table I's cells then read: force closure % (held % / robust force "
+        "closure %).",
+        "",
+    ]
 
 
 def markdown(table, metrics_dict, timings, *, figures=(), settings=""):
@@ -216,6 +327,7 @@ def markdown(table, metrics_dict, timings, *, figures=(), settings=""):
         f"MAT is above the baseline in {metrics_dict['runs_mat_above_baseline']} of "
         f"{metrics_dict['runs_compared']} runs (object x scale x hand) that have trials.",
         "",
+        *_checks_summary(mat, baseline),
         "## Table I: force-closure % of the MAT candidates",
         "",
         table_one(table, "mat"),

@@ -100,6 +100,34 @@ def robust_force_closure(
     results = engine.run(
         moved_grasp, moved_approach, moved_orient, list(np.repeat(np.asarray(preshapes, object), samples))
     )
+    return robust_scores(
+        results,
+        mus,
+        samples,
+        cone_edges=settings.cone_edges,
+        torque_scale=engine.torque_scale,
+        torsional_friction=settings.torsional_friction_m,
+        centre=engine.centre,
+    )
+
+
+def robust_scores(results, mus, samples, *, cone_edges, torque_scale, torsional_friction, centre):
+    """Grade the noisy copies' trials, each at its own friction coefficient.
+
+    Parameters
+    ----------
+    results : list of n * samples TrialResult
+        The copies' trials, candidate by candidate (as :func:`perturbed_candidates` orders them).
+    mus : (n * samples,) float
+    samples : int
+    cone_edges, torque_scale, torsional_friction, centre
+        As :func:`pipeline.quality.epsilon_quality` takes them (the trials' own).
+
+    Returns
+    -------
+    robust_fc : (n,) float in [0, 1]
+    robust_epsilon : (n,) float
+    """
     epsilon = np.zeros(len(results))
     closed = np.zeros(len(results), bool)
     for copy, (result, mu) in enumerate(zip(results, mus)):
@@ -109,10 +137,10 @@ def robust_force_closure(
             result.contact_points,
             -result.contact_normals,
             mu=mu,
-            edges=settings.cone_edges,
-            torque_scale=engine.torque_scale,
-            torsional_friction=settings.torsional_friction_m,
-            center=engine.centre,
+            edges=cone_edges,
+            torque_scale=torque_scale,
+            torsional_friction=torsional_friction,
+            center=centre,
         )
         epsilon[copy], closed[copy] = quality.epsilon, quality.force_closure
     return closed.reshape(-1, samples).mean(axis=1), epsilon.reshape(-1, samples).mean(axis=1)

@@ -13,7 +13,8 @@ candidate (P_g, P_d, P_o, preshape):
    not clear within ``retract_max_m``: ``collision``;
 3. come back toward the object in steps of at most ``approach_step_m`` (larger while the measured
    clearance allows) until the first link is within ``contact_tolerance_m``, never past where
-   the hand was placed (OpenRAVE's approach to contact; the paper's Simox port skipped it);
+   the hand was placed (OpenRAVE's approach to contact; the paper's Simox port skipped it:
+   ``approach_to_contact`` false closes where the retreat left the hand);
 4. close every finger at once, its joints moving by their coupling ratios (a negative ratio
    closes toward the lower limit; URDF mimic joints follow their leader), by conservative
    advancement: no point of a link moves farther than that link's distance to the object less
@@ -72,6 +73,8 @@ class TrialSettings:
     coplanar_deg: float
     max_link_contacts: int
     grid_cells: int
+    approach_to_contact: bool
+    palm_contacts: bool
 
 
 @dataclass(frozen=True)
@@ -105,6 +108,14 @@ def mass_properties(vertices, faces):
     corners = vertices[faces]
     volumes = np.einsum("ij,ij->i", corners[:, 0], np.cross(corners[:, 1], corners[:, 2]))
     return (volumes[:, None] * corners.sum(axis=1)).sum(axis=0) / (4.0 * volumes.sum())
+
+
+def torque_reference(vertices, faces):
+    """The quality's torque reference of a closed mesh: its centre of mass (3,) and the length
+    (m) dividing torques, the largest distance of a vertex from it (GraspIt, Dex-Net)."""
+    vertices = np.asarray(vertices, np.float64)
+    centre = mass_properties(vertices, np.asarray(faces))
+    return centre, float(np.linalg.norm(vertices - centre, axis=1).max())
 
 
 RETREAT_SLICE = 128  # hands whose retreat is searched together
@@ -155,8 +166,7 @@ class GraspEngine:
             edge_spacing=spacing,
             contact_edge_spacing=self.settings.contact_point_spacing_m,
         )
-        self.centre = mass_properties(self.mesh.vertices, self.mesh.faces)
-        self.torque_scale = float(np.linalg.norm(self.mesh.vertices - self.centre, axis=1).max())
+        self.centre, self.torque_scale = torque_reference(self.mesh.vertices, self.mesh.faces)
         self.near = max(self.settings.near_m, self.settings.contact_tolerance_m)
         #: seconds spent in each step of the trials run so far (the bench's breakdown)
         self.seconds = dict.fromkeys(("place", "retreat", "approach", "closing", "contacts"), 0.0)
@@ -283,9 +293,12 @@ class GraspEngine:
         return distance
 
     def _approach(self, placed, direction, retreat):
-        """(n,) offsets after coming back from ``retreat`` until a link is within the tolerance."""
+        """(n,) offsets after coming back from ``retreat`` until a link is within the tolerance;
+        ``retreat`` itself without ``approach_to_contact`` (the paper's Simox port)."""
         tolerance, step = self.settings.contact_tolerance_m, self.settings.approach_step_m
         offset = retreat.copy()
+        if not self.settings.approach_to_contact:
+            return offset
         pending = np.flatnonzero(offset > 0)
         wanted = np.broadcast_to(self.model.link_radius > 0, (len(placed), len(self.model.links)))
         while len(pending):
@@ -410,6 +423,8 @@ def grade(regions, model, settings, *, centre, torque_scale, **pose):
     regions : list of (int, (k, 3) float, (k, 3) float)
         Per touching link: its index in ``model``, the object points (m) and the object's
         outward unit normals of its touching pairs; merged here (:func:`region_corners`).
+        Without ``settings.palm_contacts`` the palm's (link 0) are dropped first, and a hand
+        that touched with its palm alone is ``no_contact``.
     model : HandModel
     settings : TrialSettings
     centre : (3,) float
@@ -419,6 +434,8 @@ def grade(regions, model, settings, *, centre, torque_scale, **pose):
     **pose
         The other :class:`TrialResult` fields (where the hand closed, joints, stops).
     """
+    if not settings.palm_contacts:
+        regions = [region for region in regions if region[0] != 0]
     if not regions:
         return TrialResult("no_contact", **pose)
     points, normals, owners = [], [], []

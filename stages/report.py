@@ -1,7 +1,7 @@
 """Stage ``report``: python -m stages.report DATA_DIR OUT_DIR [--log L.mcap]
 
-Reads ``DATA_DIR/<object>/<scale>/<hand>/trials.parquet`` of every object, scale and hand in
-params.yaml and every ``timing/*.json`` beside the artefacts; writes into OUT_DIR ``report.md``,
+Reads ``DATA_DIR/<object>/<scale>/<hand>/trials.parquet`` and ``checks.parquet`` of every object,
+scale and hand in params.yaml and every ``timing/*.json`` beside the artefacts; writes into OUT_DIR ``report.md``,
 ``trials.parquet`` (every trial), ``metrics.json``, ``plots/*.csv`` and ``figures/*.png``.
 """
 
@@ -31,7 +31,7 @@ def main(argv=None):
     runs = [
         (name, scale, hand) for name in config.objects for scale in config.scales for hand in config.candidates.hands
     ]
-    tables, timings = {}, []
+    tables, checks, timings = {}, {}, []
     for name, scale, hand in runs:
         path = run_dir(args.data, name, scale, hand) / "trials.parquet"
         if not path.is_file() and not (ROOT / object_stage_file("simulate", name)).is_file():
@@ -42,6 +42,7 @@ def main(argv=None):
         if not path.is_file():
             raise ArtefactError(f"{path}: missing; run `dvc repro` (the report needs every simulate stage)")
         tables[(name, scale, hand)] = read_table(path)
+        checks[(name, scale, hand)] = read_table(path.with_name("checks.parquet"))
     for folder in {run_dir(args.data, name, scale) for name, scale, _ in runs}:
         timings += [json.loads(path.read_text()) for path in sorted(folder.rglob("timing/*.json"))]
     used = {
@@ -51,9 +52,9 @@ def main(argv=None):
         "hands": list(config.candidates.hands),
         **dataclasses.asdict(config.report),
     }
-    inputs = [run_dir(args.data, *run) / "trials.parquet" for run in runs]
+    inputs = [run_dir(args.data, *run) / name for run in runs for name in ("trials.parquet", "checks.parquet")]
     with stage_run(args, "report", params=used, inputs=inputs) as run:
-        trials = report.combine(tables)
+        trials = report.combine(tables, checks)
         table = report.results(trials, runs)
         metrics = report.metrics(trials, table)
         force_closure, epsilon = report.plot_tables(table, trials, bins=config.report.epsilon_bins)
@@ -62,8 +63,11 @@ def main(argv=None):
         for planner, frame in force_closure.items():
             atomic_write(out / "plots" / f"force_closure_{planner}.csv", lambda s, f=frame: f.to_csv(s, index=False))
         atomic_write(out / "plots" / "epsilon.csv", lambda stream: epsilon.to_csv(stream, index=False))
+        calibration = report.calibration(trials)
+        for score, frame in report.calibration_plots(calibration).items():
+            atomic_write(out / "plots" / f"calibration_{score}.csv", lambda s, f=frame: f.to_csv(s, index=False))
         atomic_write(out / "metrics.json", lambda stream: stream.write(json_bytes(metrics, indent=2)))
-        figures = write_figures(args.data, out, config, trials)
+        figures = write_figures(args.data, out, config, trials, calibration)
         settings = (
             f"Protocol: {config.simulate.spheres_per_object} random spheres of the reduced set per object, "
             f"scale and hand, all their candidates tried, and as many surface-normal baseline trials; "
@@ -83,9 +87,10 @@ def main(argv=None):
     )
 
 
-def write_figures(data, out, config, trials):
-    """PNGs of the objects named in ``report.figure_objects``: medial spheres and candidates
-    (paper Fig. 5), and the best grasps of each hand (Fig. 7). Returns (caption, path) pairs."""
+def write_figures(data, out, config, trials, calibration):
+    """PNGs of the calibration (physics success against the analytic scores) and of the objects
+    named in ``report.figure_objects``: medial spheres and candidates (paper Fig. 5), and the
+    best grasps of each hand (Fig. 7). Returns (caption, path) pairs."""
     import pandas as pd
     from PIL import Image
 
@@ -101,6 +106,14 @@ def write_figures(data, out, config, trials):
         return f"figures/{name}"
 
     captions = []
+    if calibration.checked.sum():
+        captions.append(
+            (
+                "Do the analytic scores predict holding? Physics success of the checked trials per epsilon bin "
+                "and per robust force-closure bin (legend: checked trials)",
+                save(figures.calibration_figure(calibration), "calibration.png"),
+            )
+        )
     for name in config.report.figure_objects:
         if name not in config.objects:
             continue

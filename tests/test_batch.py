@@ -18,13 +18,19 @@ from conftest import complete_params
 from pipeline.batch import find_meshes, plan_object, read_results, run_batch
 from pipeline.errors import BadInputError
 from pipeline.params import load_params
+from pipeline.grasp_checks import with_checks
 from pipeline.plan import run_chain
 
 REPO = Path(__file__).resolve().parents[1]
 HANDS = ["barrett"]
 SCALE = 0.015  # the scale of pybullet's random_urdfs, as their URDFs give it
 PARAMS = complete_params(
-    {"seed": 0, "sample": {"count": 2000}, "simulate": {"spheres_per_object": 2, "baseline_trials": 2}}
+    {
+        "seed": 0,
+        "sample": {"count": 2000},
+        "simulate": {"spheres_per_object": 2, "baseline_trials": 2},
+        "checks": {"trials": 3, "robust_samples": 2, "vhacd_resolution": 100000},
+    }
 )
 
 pytestmark = pytest.mark.slow
@@ -54,6 +60,10 @@ def finished(dataset):
     return counts, *read_results(folder / "out")
 
 
+def row_of(objects, name):
+    return objects[objects.object == name].iloc[0]
+
+
 def test_batch_rows_match_plan_and_the_corrupt_mesh_is_one_error_row(dataset, finished):
     folder, params = dataset
     counts, objects, trials = finished
@@ -67,8 +77,12 @@ def test_batch_rows_match_plan_and_the_corrupt_mesh_is_one_error_row(dataset, fi
             str(folder / "meshes" / f"{name}.obj"), params, scale=SCALE, seed=0, hands=HANDS, simulate=True, workers=1
         )
         mine = trials[trials.object == name].drop(columns="object").reset_index(drop=True)
-        pd.testing.assert_frame_equal(mine, artefacts["trials"], check_categorical=False)
-        row = objects[objects.object == name].iloc[0]
+        expected = with_checks(artefacts["trials"], artefacts["check"])  # each trial with its checks
+        pd.testing.assert_frame_equal(mine, expected, check_categorical=False)
+        checks = artefacts["check"][artefacts["check"].planner == "mat"]
+        assert mine.physics_success.notna().sum() == len(artefacts["check"]) > 0
+        assert row_of(objects, name).physics_success_rate == pytest.approx(checks.physics_success.mean())
+        row = row_of(objects, name)
         assert row.candidates == len(artefacts["candidates"]) and row.medial_spheres == len(artefacts["mat"])
 
 

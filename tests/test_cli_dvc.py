@@ -30,7 +30,9 @@ def run(args, cwd):
 
 @pytest.mark.slow
 def test_plan_writes_every_artefact_and_summary(tmp_path):
-    (tmp_path / "params.yaml").write_text(yaml.safe_dump(complete_params({"sample": {"count": 3000}})))
+    (tmp_path / "params.yaml").write_text(
+        yaml.safe_dump(complete_params({"sample": {"count": 3000}, "checks": {"trials": 3, "robust_samples": 4}}))
+    )
     plan = [
         sys.executable,
         "-m",
@@ -60,6 +62,8 @@ def test_plan_writes_every_artefact_and_summary(tmp_path):
         "candidates.parquet",
         "trials.parquet",
         "contacts.parquet",
+        "parts.npz",
+        "checks.parquet",
         "summary.json",
     }
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
@@ -72,6 +76,8 @@ def test_plan_writes_every_artefact_and_summary(tmp_path):
         "classify",
         "candidates",
         "simulate",
+        "decompose",
+        "check",
     }
     trials = pd.read_parquet(tmp_path / "out" / "trials.parquet")
     mat = trials[trials.planner == "mat"]
@@ -83,8 +89,16 @@ def test_plan_writes_every_artefact_and_summary(tmp_path):
     table = pd.read_parquet(tmp_path / "out" / "candidates.parquet")
     assert summary["candidates"] == {hand: int((table.hand == hand).sum()) for hand in ("armar3", "barrett")}
     assert sum(summary["classes"].values()) == len(np.load(tmp_path / "out" / "symmetry.npz")["class_id"])
-    # the same seed gives the same artefacts
-    again = run(plan + ["--out", "again"], tmp_path)
+    # the checks: params checks.trials (3 here) per hand and planner, the physics check on the closed hands
+    checks = pd.read_parquet(tmp_path / "out" / "checks.parquet")
+    assert checks.groupby(["hand", "planner"]).size().max() <= 3 and len(checks) > 0
+    closed = checks.outcome.isin(["force_closure", "no_force_closure"])
+    assert (checks.physics_outcome[~closed] == "no_grasp").all() and checks.physics_slip_m[~closed].isna().all()
+    assert (
+        checks.robust_fc.between(0, 1).all() and summary["checks"]["mat"]["checked"] == (checks.planner == "mat").sum()
+    )
+    # the same seed gives the same artefacts (the checks too, with another worker count)
+    again = run(plan[:-1] + ["2", "--out", "again"], tmp_path)
     assert again.returncode == 0
     for name in (
         "surface.npz",
@@ -94,6 +108,8 @@ def test_plan_writes_every_artefact_and_summary(tmp_path):
         "candidates.parquet",
         "trials.parquet",
         "contacts.parquet",
+        "parts.npz",
+        "checks.parquet",
     ):
         assert (tmp_path / "out" / name).read_bytes() == (tmp_path / "again" / name).read_bytes()
 
@@ -155,6 +171,7 @@ def tiny_project(tmp_path):
     params["candidates"]["hands"] = list(TINY_HANDS)
     params["sample"]["count"] = 2000
     params["simulate"].update(spheres_per_object=5, workers=1)
+    params["checks"].update(trials=4, robust_samples=2)
     params["report"].update(example_grasps=1)
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
     listed = run([sys.executable, "-m", "pipeline", "objects", "meshes", "--write", "params.yaml"], tmp_path)
@@ -194,7 +211,7 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     assert first.returncode == 0, first.stderr + first.stdout
     runs, per_scale = TINY_RUNS, len(TINY_OBJECTS) * len(TINY_SCALES)
     # (the code stages' fingerprints came with the copy: the code has not changed)
-    assert len(ran_stages(first) - {"code"}) == per_scale * 5 + len(runs) * 2 + 1
+    assert len(ran_stages(first) - {"code"}) == per_scale * 6 + len(runs) * 3 + 1
 
     # the report: a row per object x scale x hand, every trial, metrics, plots, figures
     out = tmp_path / "report"
@@ -321,13 +338,26 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     swept = run(dvc + ["exp", "run", "-S", "classify.min_object_angle_deg=150"], tmp_path)
     assert swept.returncode == 0, swept.stderr + swept.stdout
     ran = ran_stages(swept)
-    assert {stage.split("@")[0] for stage in ran} <= {"classify", "candidates", "simulate", "report"}
+    assert {stage.split("@")[0] for stage in ran} <= {"classify", "candidates", "simulate", "check", "report"}
     assert {f"classify@{name}-{scale}" for name in TINY_OBJECTS for scale in TINY_SCALES} <= ran
     for key in runs:  # trials rerun only where the candidates changed
         changed = (tmp_path / "data" / key[0] / str(key[1]) / key[2] / "candidates.parquet").read_bytes() != before[key]
         assert (f"simulate@{key[0]}-{key[1]}-{key[2]}" in ran) == changed
     shown = json.loads(run(dvc + ["exp", "show", "--json"], tmp_path).stdout)
     assert "150" in json.dumps(shown)
+
+    # the checks off: only the check stages and the report rerun; every other artefact is untouched
+    def artefact_bytes():
+        files = (tmp_path / "data").rglob("*")
+        return {path: path.read_bytes() for path in files if path.is_file() and "timing" not in path.parts}
+
+    kept = artefact_bytes()
+    off = run(dvc + ["exp", "run", "-S", "checks.trials=0"], tmp_path)
+    assert off.returncode == 0, off.stderr + off.stdout
+    assert {stage.split("@")[0] for stage in ran_stages(off)} == {"check", "report"}
+    changed = {path.name for path, data in artefact_bytes().items() if kept[path] != data}
+    assert changed == {"checks.parquet"}
+    assert all(len(pd.read_parquet(tmp_path / "data" / n / str(s) / h / "checks.parquet")) == 0 for n, s, h in runs)
 
     # push to a local remote, then a fresh clone pulls back every artefact, byte for byte
     assert run(git + ["checkout", "--", "."], tmp_path).returncode == 0
@@ -355,6 +385,9 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
         + per_scale * 6
         + len(runs) * 3
         + 1
+        + per_scale * 3  # decompose: parts, timing, log
+        + len(runs) * 3  # check: checks, timing, log
+        + 2  # the calibration plots
     )
     for relative in outputs:
         assert (clone / relative).read_bytes() == (tmp_path / relative).read_bytes()

@@ -1,12 +1,14 @@
-"""The physics check of a closed grasp (pipeline.physics, issue 15's core; not yet in the
-stages): known outcomes on analytic shapes."""
+"""The physics check of a closed grasp (pipeline.physics, stage ``check``): known outcomes on
+analytic shapes."""
+
+import dataclasses
 
 import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
 from pipeline.hands import HANDS
-from pipeline.physics import PhysicsCheck, convex_parts, mesh_volume
+from pipeline.physics import PhysicsCheck, PhysicsSettings, convex_parts, mesh_volume
 from pipeline.simulation import GraspEngine
 from test_simulation import cube, surface
 
@@ -75,3 +77,28 @@ def test_fingertips_on_a_sphere_wider_than_the_hand_drop_it(name):
     check.close()
     assert physics.outcome in ("dropped", "no_grasp") and not physics.success
     assert np.isnan(physics.slip_m) or physics.slip_m > 1.0  # it fell far
+
+
+def test_a_plate_resting_on_the_fingertips_holds_against_gravity_but_not_a_sideways_shake():
+    """A 16 x 16 x 2 cm plate (256 g) on the jaw's pad tips, the hand under it (approach +z):
+    the trial's contacts all lie on the bottom face, so epsilon is 0 (no force closure), yet the plate rests
+    on the pads. The check says so: without shakes it is held; a shake of one body weight
+    sideways beats the pads' friction (mu 0.5 x its weight) and the plate slides off."""
+    plate = surface("primitive:box", extents=(0.16, 0.16, 0.02))
+    engine = GraspEngine(plate, HANDS["parallel_jaw"])
+    result = engine.trial([0.0, 0.0, -0.01], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0])
+    assert result.outcome == "no_force_closure" and result.epsilon == 0.0
+    assert np.allclose(result.contact_points[:, 2], -0.01)  # every contact on the bottom face
+    pose = (result.base_position, result.base_orientation, result.joint_positions)
+    still = PhysicsSettings.defaults()
+    check = PhysicsCheck(
+        plate.vertices, plate.faces, HANDS["parallel_jaw"], engine.model, parts=[plate.vertices], settings=still
+    )
+    try:
+        shaken = check.check(*pose)
+        check.settings = dataclasses.replace(still, shake_g=0.0)
+        lifted = check.check(*pose)
+    finally:
+        check.close()
+    assert lifted.outcome == "held" and lifted.slip_m < 0.005
+    assert shaken.outcome in ("dropped", "slipped") and shaken.slip_m > 0.05

@@ -54,8 +54,13 @@ def test_results_count_every_run_by_hand(trials):
 
 def test_metrics_overall_per_hand_and_wins(trials):
     metrics = report.metrics(trials, report.results(trials, RUNS))
-    assert metrics["mat"] == {"force_closure_rate": 0.5, "trials": 6}
-    assert metrics["baseline"] == {"force_closure_rate": 0.5, "trials": 6}
+    for planner in ("mat", "baseline"):
+        assert {key: metrics[planner][key] for key in ("force_closure_rate", "trials", "checked")} == {
+            "force_closure_rate": 0.5,
+            "trials": 6,
+            "checked": 0,
+        }
+        assert np.isnan(metrics[planner]["physics_success_rate"]) and np.isnan(metrics[planner]["robust_fc"])
     assert metrics["per_scale"]["1.0"] == {"mat": 0.75, "baseline": 0.25}
     assert metrics["per_hand"]["armar3"] == {"mat": 0.5, "baseline": 0.5}
     assert (metrics["runs_compared"], metrics["runs_mat_above_baseline"]) == (2, 1)

@@ -12,7 +12,7 @@ from pipeline.errors import BadInputError, BadParamsError
 from pipeline.hands import HANDS, export_hand, get_hand
 from pipeline.kinematics import hand_model, link_poses
 from pipeline.simulation import GraspEngine, check_simulable
-from test_simulation import surface
+from test_simulation import cube, surface
 
 
 def random_candidates(shape, count, rng):
@@ -404,3 +404,60 @@ def test_jaw_contacts_on_a_finely_meshed_cube_reach_as_far_as_its_edges_stay_wit
             np.testing.assert_allclose(face[:, 0], side * 0.02, atol=1e-7)
             np.testing.assert_allclose([face[:, 2].min(), face[:, 2].max()], [-0.02, 0.02], atol=1e-7)
             assert low <= -face[:, 1].min() <= high and low <= face[:, 1].max() <= high, (spacing, face[:, 1])
+
+
+def test_retreat_only_closes_where_the_retreat_left_the_hand():
+    """The jaw placed 25.5 mm down into the 4 cm cube (approach -z): its palm, 60 mm below the
+    base, must retreat 25 mm (5 mm steps) to clear the top face, 4.5 mm above it. Approaching to
+    contact comes back 3 mm (1 mm steps and a 2 mm jump from the measured clearance) to 1.5 mm,
+    within the 2 mm tolerance: the palm touches. The paper's Simox port (approach_to_contact
+    false) closes 3 mm farther back, the palm clear; the pads close on the sides either way."""
+    results = {
+        flag: GraspEngine(cube(), HANDS["parallel_jaw"], approach_to_contact=flag).trial(
+            [0.0, 0.0, -0.0255], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]
+        )
+        for flag in (True, False)
+    }
+    near, back = results[True], results[False]
+    assert (near.retract_m, near.approach_m) == (pytest.approx(0.022, abs=1e-9), pytest.approx(0.003, abs=1e-9))
+    assert (back.retract_m, back.approach_m) == (pytest.approx(0.025, abs=1e-9), 0.0)
+    assert back.base_position[2] - near.base_position[2] == pytest.approx(0.003, abs=1e-9)
+    assert "palm" in near.touched and set(back.touched) == {"left_pad", "right_pad"}
+    assert near.outcome == back.outcome == "force_closure"
+    assert near.joint_positions == back.joint_positions
+    # where nothing is to be gained the two agree: placed clear, or the retreat ends touching
+    for depth in (0.0, -0.04):
+        same = [
+            GraspEngine(cube(), HANDS["parallel_jaw"], approach_to_contact=flag).trial(
+                [0.0, 0.0, depth], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]
+            )
+            for flag in (True, False)
+        ]
+        assert (same[0].retract_m, same[0].epsilon) == (same[1].retract_m, same[1].epsilon)
+
+
+def test_without_palm_contacts_the_same_closed_hand_is_graded_on_its_fingers_alone():
+    """The jaw 4 cm down into the cube: after the retreat its palm rests on the top face and
+    the pads on two sides. Without palm contacts the hand closes the same (base, joints) and
+    keeps exactly the pads' contacts; a hand touching with its palm alone has no contact."""
+    from pipeline.params import SimulateParams
+    from pipeline.simulation import TrialSettings, grade
+
+    target = ([0.0, 0.0, -0.04], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0])
+    whole = GraspEngine(cube(), HANDS["parallel_jaw"]).trial(*target)
+    engine = GraspEngine(cube(), HANDS["parallel_jaw"], palm_contacts=False)
+    fingers = engine.trial(*target)
+    assert "palm" in whole.touched and (whole.contact_links == 0).any()
+    assert set(fingers.touched) == {"left_pad", "right_pad"} and (fingers.contact_links != 0).all()
+    assert (fingers.base_position, fingers.joint_positions) == (whole.base_position, whole.joint_positions)
+    pads = whole.contact_links != 0
+    np.testing.assert_array_equal(fingers.contact_points, whole.contact_points[pads])
+    np.testing.assert_array_equal(fingers.contact_links, whole.contact_links[pads])
+    assert fingers.outcome == "force_closure" and 0 < fingers.epsilon != whole.epsilon
+    # the palm's region alone: nothing left to grade
+    palm = whole.contact_links == 0
+    regions = [(0, whole.contact_points[palm], whole.contact_normals[palm])]
+    for flag, outcome in ((True, "no_force_closure"), (False, "no_contact")):
+        settings = TrialSettings(**SimulateParams(palm_contacts=flag).world_settings())
+        graded = grade(regions, engine.model, settings, centre=engine.centre, torque_scale=engine.torque_scale)
+        assert graded.outcome == outcome

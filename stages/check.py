@@ -1,0 +1,62 @@
+"""Stage ``check``: python -m stages.check SURFACE.npz TRIALS.parquet PARTS.npz HAND CHECKS.parquet
+[--timing T.json] [--log L.mcap]
+
+A seeded sample of the hand's trials per planner: the pybullet lift-and-shake check and robust
+force closure (params ``checks``; see pipeline/grasp_checks.py).
+"""
+
+import dataclasses
+
+from pipeline.stage_io import one_line_errors, params, progress_bar, stage_args, stage_run
+
+
+@one_line_errors
+def main(argv=None):
+    from pipeline.pool import default_workers
+
+    args = stage_args(__doc__, "surface", "trials", "parts", "hand", "checks", argv=argv)
+    config = params()
+    from pipeline.artefacts import SurfaceSamples, read_table, write_table
+    from pipeline.grasp_checks import check_trials, summary
+    from pipeline.hands import get_hand
+    from pipeline.physics import ConvexParts
+
+    used = {"seed": config.seed, "hand": args.hand, **dataclasses.asdict(config.checks)}
+    inputs = [args.surface, args.trials, args.parts]
+    with stage_run(args, "check", params=used, inputs=inputs, outputs=[args.checks]) as run:
+        surface, trials, parts = (
+            SurfaceSamples.load(args.surface),
+            read_table(args.trials),
+            ConvexParts.load(args.parts),
+        )
+        with progress_bar(f"check {args.checks}", unit="check") as progress:
+            checks = check_trials(
+                surface,
+                trials,
+                parts,
+                hands=[get_hand(args.hand)],
+                seed=config.seed,
+                settings=config.simulate.world_settings(),
+                workers=default_workers(config.simulate.workers),
+                progress=progress,
+                **dataclasses.asdict(config.checks),
+            )
+        write_table(args.checks, checks)
+        result = summary(checks)
+        run.count(
+            **{
+                f"{planner}_{key}": value
+                for planner in ("mat", "baseline")
+                for key, value in result[planner].items()
+                if key != "physics_outcomes"
+            }
+        )
+    mat, baseline = result["mat"], result["baseline"]
+    print(
+        f"check {args.checks}: {len(checks)} trials, held {mat['physics_success_rate']:.1%} MAT, "
+        f"{baseline['physics_success_rate']:.1%} baseline; robust force closure {mat['robust_fc']:.2f} / {baseline['robust_fc']:.2f}"
+    )
+
+
+if __name__ == "__main__":
+    main()

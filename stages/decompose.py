@@ -1,0 +1,23 @@
+"""Stage ``decompose``: python -m stages.decompose SURFACE.npz PARTS.npz [--timing T.json] [--log L.mcap]
+
+The object's convex parts (pybullet's V-HACD), the dynamic body of the physics check.
+"""
+
+from pipeline.artefacts import SurfaceSamples
+from pipeline.physics import decompose
+from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
+
+
+@one_line_errors
+def main(argv=None):
+    args = stage_args(__doc__, "surface", "parts", argv=argv)
+    used = {"vhacd_resolution": params().checks.vhacd_resolution}
+    with stage_run(args, "decompose", params=used, inputs=[args.surface], outputs=[args.parts]) as run:
+        parts = decompose(SurfaceSamples.load(args.surface), **used)
+        parts.save(args.parts)
+        run.count(parts=len(parts.part_start) - 1, vertices=len(parts.vertices))
+    print(f"decompose {args.parts}: {len(parts.part_start) - 1} convex parts")
+
+
+if __name__ == "__main__":
+    main()
