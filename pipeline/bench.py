@@ -196,6 +196,19 @@ def trial_bench_chain():
     return artefacts, len(mesh.faces)
 
 
+def _warm_engine(surface, symmetry, hand, trials, settings):
+    """``trials`` random MAT candidates of ``hand`` (seeded), their targets (grasp, approach,
+    orient, preshapes) and an engine that has run two of them."""
+    table = generate(symmetry, hand)
+    table = table.sample(min(trials, len(table)), random_state=0).reset_index(drop=True)
+    targets = (vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), list(table.preshape))
+    engine = GraspEngine(surface, hand, **settings)
+    # numba loads its compiled kernels on their first call (about 0.3 s a process, once): part
+    # of the start-up (measured through the pool in the trial table), not of the trials
+    engine.run(*(values[:2] for values in targets))
+    return table, targets, engine
+
+
 def run_trial_bench(*, trials=512, reference_trials=60, out=print):
     """Grasp trials per second per hand on a ~17k-triangle duck, the engine
     (:mod:`pipeline.simulation`, batched) beside the one it replaced (:mod:`pipeline.legacy_trial`,
@@ -216,13 +229,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
     )
     rows = []
     for name, hand in HANDS.items():
-        table = generate(symmetry, hand)
-        table = table.sample(min(trials, len(table)), random_state=0).reset_index(drop=True)
-        targets = (vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), list(table.preshape))
-        engine = GraspEngine(surface, hand, **settings)
-        # numba loads its compiled kernels on their first call (about 0.3 s a process, once):
-        # part of the start-up measured through the pool below, not of the trials
-        engine.run(*(values[:2] for values in targets))
+        table, targets, engine = _warm_engine(surface, symmetry, hand, trials, settings)
         engine.seconds = dict.fromkeys(engine.seconds, 0.0)
         start = time.perf_counter()
         new = [
@@ -311,11 +318,7 @@ def run_check_bench(*, trials=256, physics=100, robust=32, samples=16, out=print
     )
     rows = []
     for name, hand in HANDS.items():
-        table = generate(symmetry, hand)
-        table = table.sample(min(trials, len(table)), random_state=0).reset_index(drop=True)
-        targets = (vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), list(table.preshape))
-        engine = GraspEngine(surface, hand, **settings)
-        engine.run(*(values[:2] for values in targets))  # numba's kernels load on their first call
+        _, targets, engine = _warm_engine(surface, symmetry, hand, trials, settings)
         start = time.perf_counter()
         results = engine.run(*targets)
         trial_rate = len(results) / (time.perf_counter() - start)

@@ -15,9 +15,10 @@ the declarations the planner needs, in the hand's base frame (metres, radians):
 - ``preshapes``: name -> {joint: value} of the open hand; unnamed joints sit at their lower
   limit. The first preshape is the default; every hand has ``parallel``.
 - ``max_graspable_diameter``: the largest sphere the hand can hold (paper IV).
-- ``joint_effort``: the force (N, prismatic) or torque (N m, revolute) limit of each joint's
-  servo in the physics check (:mod:`pipeline.physics`); optional in a spec, 20 by default (the
-  built-ins too: about a Franka finger's continuous force).
+- ``joint_effort``: the force (N, prismatic) or torque (N m, revolute) each joint's servo
+  squeezes with in the physics check (:mod:`pipeline.physics`); optional in a spec. The
+  default (None, the built-ins too): 20 N for a prismatic joint (about a Franka finger's
+  continuous force), 1.5 N m for a revolute one (about 15 N at a Barrett fingertip).
 
 Built-in hands are generated from published kinematics (``facts.md`` 4) in the common frame
 ``approach = +z``, ``wrap = +x``, palm top at the finger joint plane:
@@ -101,7 +102,7 @@ class Hand:
     joints: tuple = ()
     urdf: str = None
     base_link: str = None
-    joint_effort: float = 20.0
+    joint_effort: float = None
 
     def key(self):
         """A hashable summary of everything that defines the hand (for caches)."""
@@ -339,7 +340,8 @@ def spec_dict(hand, urdf_name):
     }
     if hand.base_link:
         spec["base_link"] = hand.base_link
-    spec["joint_effort"] = hand.joint_effort
+    if hand.joint_effort is not None:
+        spec["joint_effort"] = hand.joint_effort
     return spec
 
 
@@ -373,7 +375,7 @@ def load_hand(path):
     if not isinstance(raw, dict):
         raise BadParamsError(f"{path}: hand spec must be a mapping")
     required = ("name", "urdf", "max_graspable_diameter", "approach", "wrap", "grasp_centre", "fingers", "preshapes")
-    optional = ("limits", "base_link", "joint_effort")  # the URDF's limits, its root, 20
+    optional = ("limits", "base_link", "joint_effort")  # the URDF's limits, its root, by joint kind
     missing = [key for key in required if key not in raw]
     if missing:
         raise BadParamsError(f"{path}: hand spec lacks {', '.join(missing)}")
@@ -408,14 +410,14 @@ def load_hand(path):
         }
         approach, wrap, centre = (tuple(float(v) for v in raw[key]) for key in ("approach", "wrap", "grasp_centre"))
         diameter = float(raw["max_graspable_diameter"])
-        effort = float(raw.get("joint_effort", Hand.joint_effort))
+        effort = None if raw.get("joint_effort") is None else float(raw["joint_effort"])
     except (TypeError, ValueError, KeyError, AttributeError) as err:
         raise BadParamsError(f"{path}: malformed hand spec ({err})") from None
     problems = _spec_problems(fingers, limits, preshapes, approach, wrap, centre, diameter)
     unknown_joint = next((joint for joint in limits if robot.joint(joint) is None), None)
     if unknown_joint is not None:
         problems.insert(0, f"joint {unknown_joint!r} is not in {Path(urdf).name} below {robot.root!r}")
-    if not (effort > 0 and math.isfinite(effort)):
+    if effort is not None and not (effort > 0 and math.isfinite(effort)):
         problems.append("joint_effort must be a positive number (N or N m)")
     if problems:
         raise BadParamsError(f"{path}: {problems[0]}")

@@ -288,7 +288,7 @@ class CheckParams:
     15): a seeded sample of each run's trials gets the pybullet lift-and-shake check
     (:mod:`pipeline.physics`) and robust force closure (:mod:`pipeline.robust`)."""
 
-    trials: int = 50
+    trials: int = 25
     """Trials checked per run (object, scale, hand) and planner, a seeded sample; -1 = every
     trial, 0 = none (the checks table is empty)."""
     physics: bool = True
@@ -308,9 +308,12 @@ class CheckParams:
     """Voxels of pybullet's V-HACD convex decomposition (the dynamic object's shape)."""
     open_back: float = 0.002
     """The check starts from the trial's closed joints opened by this (rad or m per joint)..."""
-    squeeze: float = 0.01
-    """... and drives them to the closed joints closed further by this, each joint's servo
-    limited to the hand's ``joint_effort``."""
+    squeeze: float = 0.5
+    """... and drives them toward the closed joints closed further by this (clipped at the
+    limits), far enough that a touching joint pushes at the hand's ``joint_effort``."""
+    settle_damping: float = 0.9
+    """Bullet's linear and angular damping of the weightless object while the fingers squeeze:
+    it settles where their forces balance, or slides out."""
     settle_s: float = 0.25
     """Time the fingers squeeze the weightless object before the lift."""
     lift_s: float = 0.5
@@ -338,6 +341,7 @@ class CheckParams:
             "shake_s",
         ):
             _require(getattr(self, key) >= 0, "checks", key, "must be >= 0")
+        _require(0 <= self.settle_damping < 1, "checks", "settle_damping", "must be in [0, 1)")
         for key in ("density_kg_m3", "settle_s", "slip_m", "slip_rad"):
             _require(getattr(self, key) > 0, "checks", key, "must be > 0")
         _require(self.vhacd_resolution >= 10000, "checks", "vhacd_resolution", "must be >= 10000")
@@ -348,6 +352,7 @@ class CheckParams:
             "density_kg_m3",
             "open_back",
             "squeeze",
+            "settle_damping",
             "settle_s",
             "lift_s",
             "shake_g",

@@ -7,19 +7,21 @@ pose and joints) and runs pybullet's dynamics (headless, its own client):
 - the object is a dynamic body made of convex parts (pybullet can only move convex shapes;
   :func:`convex_parts`: pybullet's built-in V-HACD), its mass its mesh volume times
   ``density_kg_m3``, its friction ``mu``;
-- the hand is held still, fixed in the world, every joint (mimics included) under position
-  control limited to the hand's ``joint_effort`` (N or N m): it starts opened by ``open_back``
-  (rad or m along each joint's closing direction) and is driven toward the closed pose closed
-  further by ``squeeze`` for ``settle_s``, the object held where it is meanwhile (a fixed
-  constraint, as a table holds an object while a hand closes on it: a free object is pushed
-  away by the first finger to touch it);
-- then the object is let go, and the lift and the shake, in the hand's frame: lifting the hand
-  at a constant speed is the object under gravity (``lift_s``, the time a 10 cm lift takes),
-  and each shake along
+- the hand is held still, fixed in the world, every joint (mimics included) a position servo
+  limited to the hand's ``joint_effort`` (:data:`EFFORT` by joint kind unless its spec says):
+  it starts opened by ``open_back`` (rad or m along each joint's closing direction) and is
+  driven toward the closed pose closed further by ``squeeze`` (clipped at the joint limits),
+  far enough past the object that a touching joint pushes at its effort limit: a constant grip,
+  as a hand closing under its motors' torque. Gravity is on from the start (in the hand's
+  frame, lifting the hand at a constant speed is the object under gravity). For ``settle_s``
+  the object is damped (``settle_damping``, Bullet's velocity damping): it settles where the
+  fingers' forces and its weight balance, or slides out of a hand whose forces cannot balance
+  (a pinch on a slope, pads squeezing a wedge);
+- then, undamped, the lift (``lift_s``, the time a 10 cm lift takes) and the shake: each along
   +-x, +-y, +-z (world) is a force of ``shake_g`` times the object's weight, ``shake_s`` each,
   on top of gravity, as DexGraspBench applies external forces.
 
-Outcome: ``no_grasp`` (the object touches no hand link after the squeeze), ``dropped`` (no
+Outcome: ``no_grasp`` (the object touches no hand link after the settle), ``dropped`` (no
 link touches it at the end), ``slipped`` (it moved more than ``slip_m`` or turned more than
 ``slip_rad`` relative to the hand, still touching), ``held``; ``slip_m`` is how far its centre
 moved from where the squeeze left it.
@@ -50,6 +52,10 @@ from .bullet import BulletClient, load_hand, pybullet
 from .simulation import mass_properties
 
 
+#: the servo limit of a joint whose hand does not give ``joint_effort``: N (prismatic), N m
+EFFORT = {"prismatic": 20.0, "revolute": 1.5}
+
+
 @dataclass(frozen=True)
 class PhysicsSettings:
     """How the check runs: the ``checks`` params of the same names (their defaults and
@@ -60,6 +66,7 @@ class PhysicsSettings:
     density_kg_m3: float
     open_back: float
     squeeze: float
+    settle_damping: float
     settle_s: float
     lift_s: float
     shake_g: float
@@ -188,7 +195,6 @@ class PhysicsCheck(BulletClient):
 
     def __init__(self, vertices, faces, hand, model, *, parts=None, settings=None):
         self.settings, self.model = settings or PhysicsSettings.defaults(), model
-        self.effort = hand.joint_effort
         settings = self.settings
         super().__init__()
         call = self._call
@@ -205,6 +211,9 @@ class PhysicsCheck(BulletClient):
         self.hand = load_hand(hand, self.client)
         info = [call(pybullet.getJointInfo, self.hand, k) for k in range(call(pybullet.getNumJoints, self.hand))]
         self.joint_index = {row[1].decode(): row[0] for row in info}
+        # each joint's grip: the hand's effort, else the default of its kind
+        kinds = {row[1].decode(): ("prismatic" if row[2] == pybullet.JOINT_PRISMATIC else "revolute") for row in info}
+        self.effort = {name: hand.joint_effort or EFFORT[kind] for name, kind in kinds.items()}
         for link in range(-1, len(info)):
             call(pybullet.changeDynamics, self.hand, link, lateralFriction=1.0)
         self.base_inertial = call(pybullet.getDynamicsInfo, self.hand, -1)[3:5]
@@ -237,7 +246,7 @@ class PhysicsCheck(BulletClient):
                 self.joint_index[name],
                 pybullet.POSITION_CONTROL,
                 targetPosition=value,
-                force=self.effort,
+                force=self.effort[name],
             )
 
     def _touching(self):
@@ -256,7 +265,7 @@ class PhysicsCheck(BulletClient):
         Returns a :class:`PhysicsResult`."""
         settings, model, call = self.settings, self.model, self._call
         call(pybullet.restoreState, self.saved)
-        call(pybullet.setGravity, 0.0, 0.0, 0.0)
+        call(pybullet.setGravity, 0.0, 0.0, -9.81)
         call(pybullet.resetBasePositionAndOrientation, self.object, self.centre, [0.0, 0.0, 0.0, 1.0])
         call(pybullet.resetBaseVelocity, self.object, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
         position, orientation = pybullet.multiplyTransforms(
@@ -269,27 +278,15 @@ class PhysicsCheck(BulletClient):
         for name, value in model.joint_values(start).items():
             call(pybullet.resetJointState, self.hand, self.joint_index[name], value)
         self._drive(np.clip(closed + settings.squeeze * direction, model.lower, model.upper))
-        # the object is held where it is while the fingers squeeze (as a table holds it while a
-        # hand closes): a weightless free object is pushed out by the first finger to touch it
-        anchor = call(
-            pybullet.createConstraint,
-            self.object,
-            -1,
-            -1,
-            -1,
-            pybullet.JOINT_FIXED,
-            [0.0, 0.0, 0.0],
-            [0.0, 0.0, 0.0],
-            self.centre,
-        )
+        damping = settings.settle_damping
+        call(pybullet.changeDynamics, self.object, -1, linearDamping=damping, angularDamping=damping)
         self._steps(settings.settle_s)
-        call(pybullet.removeConstraint, anchor)
+        call(pybullet.changeDynamics, self.object, -1, linearDamping=0.0, angularDamping=0.0)
         if not self._touching():
             return PhysicsResult("no_grasp")
         hand_pose = call(pybullet.getBasePositionAndOrientation, self.hand)
         held_at = self._relative(hand_pose)
         weight = self.mass * 9.81
-        call(pybullet.setGravity, 0.0, 0.0, -9.81)
         self._steps(settings.lift_s)
         for axis in range(3):
             for sign in (1.0, -1.0):

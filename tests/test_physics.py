@@ -41,10 +41,9 @@ def test_a_cube_is_one_convex_part_of_its_own_volume():
 
 
 def test_the_jaw_squeezing_a_cube_holds_it_through_the_lift_and_the_shake(jaw_on_cube):
-    """32 g of cube between two pads pressing with up to 20 N each: held. The two fingers are
-    force-limited position servos of their own, so a push along the closing axis shifts the
-    cube and both pads with it (about 1 cm under a shake of its own weight): slip under 2 cm,
-    hardly a turn."""
+    """32 g of cube between two pads pressing with 20 N each: held. The two fingers are
+    force-limited servos of their own, so a push along the closing axis shifts the cube and
+    both pads with it (under a shake of its own weight): slip under 2 cm, hardly a turn."""
     result, check = jaw_on_cube
     physics = check.check(result.base_position, result.base_orientation, result.joint_positions)
     assert physics.outcome == "held" and physics.success
@@ -58,10 +57,13 @@ def test_the_check_is_deterministic(jaw_on_cube):
     assert first == again
 
 
-def test_an_open_jaw_beside_the_cube_has_no_grasp(jaw_on_cube):
-    """Joints at the open limit: the pads (80 mm apart) never reach the 40 mm cube."""
+def test_a_jaw_closing_beside_the_cube_has_no_grasp_and_one_on_it_grips_it(jaw_on_cube):
+    """The jaw 10 cm beside the cube closes on air: no_grasp. Opened fully where the trial
+    closed it, it closes (the squeeze drives the pads to their limit) onto the cube and holds."""
     result, check = jaw_on_cube
-    assert check.check(result.base_position, result.base_orientation, (0.0, 0.0)).outcome == "no_grasp"
+    beside = np.asarray(result.base_position) + [0.1, 0.0, 0.0]
+    assert check.check(beside, result.base_orientation, result.joint_positions).outcome == "no_grasp"
+    assert check.check(result.base_position, result.base_orientation, (0.0, 0.0)).outcome == "held"
 
 
 @pytest.mark.parametrize("name", ["barrett", "armar3"])
