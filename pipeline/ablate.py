@@ -168,7 +168,7 @@ def ablate(
     total = len(runs) * sum(len(table) for _, tables in jobs for table in tables)
     step = (lambda count, _: progress(count, total)) if progress else None
 
-    if physics_trials and parts is None:
+    if physics_trials and parts is None and jobs:
         from .physics import decompose
 
         parts = decompose(surface, vhacd_resolution=params.checks.vhacd_resolution).parts
@@ -323,18 +323,22 @@ def class_means(tables, classes=CLASSES):
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
 
-def class_markdown(means):
-    """Markdown tables of :func:`class_means`, one per class: per setting the MAT and baseline
-    force-closure and physics success rates (default row) or their changes (points)."""
+def class_markdown(means, classes=CLASSES):
+    """Markdown tables of :func:`class_means` (of ``classes``), one per class: per setting the
+    MAT and baseline force-closure and physics success rates (default row) or their changes
+    (points)."""
 
     def number(value, signed):
-        return "-" if pd.isna(value) else (f"{value:+.1f}" if signed else f"{value:.1f}")
+        if pd.isna(value):
+            return "-"
+        value = 0.0 if round(value, 1) == 0 else value  # no "-0.0"
+        return f"{value:+.1f}" if signed else f"{value:.1f}"
 
     blocks = []
     for name, rows in means.groupby("class", sort=False):
         runs = rows[rows.variant == "default"].runs.max()
         lines = [
-            f"**{name}** ({', '.join(member for member in CLASSES.get(name, ()))}; {runs} runs)",
+            f"**{name}** ({', '.join(classes.get(name, ()))}; {runs} runs)",
             "",
             "| setting | MAT fc | MAT held | baseline fc | baseline held |",
             "| --- | ---: | ---: | ---: | ---: |",

@@ -147,12 +147,17 @@ def plot_tables(table, trials, *, bins=20):
 
 
 def calibration_plots(calibration):
-    """``{score: table}`` for ``dvc plots`` from :func:`calibration`: per bin, its edges and each
-    planner's physics success % (empty where no trial was checked)."""
+    """``{score: table}`` for ``dvc plots`` from :func:`calibration`: per bin, its edges, each
+    planner's physics success % (empty where no trial was checked) and checked trials."""
     plots = {}
-    for score, rows in calibration.groupby("score", sort=False):
-        wide = rows.pivot(index=["bin", "low", "high"], columns="planner", values="physics_success_pct")
-        plots[score] = wide.reindex(columns=["mat", "baseline"]).round(2).reset_index()
+    for score, rows in calibration.assign(low=calibration.low.round(6), high=calibration.high.round(6)).groupby(
+        "score", sort=False
+    ):
+        wide = rows.pivot(index=["bin", "low", "high"], columns="planner", values=["physics_success_pct", "checked"])
+        frame = wide["physics_success_pct"].reindex(columns=["mat", "baseline"]).round(2)
+        for planner in ("mat", "baseline"):
+            frame[f"{planner}_checked"] = wide["checked"][planner]
+        plots[score] = frame.reset_index()
     return plots
 
 

@@ -166,3 +166,24 @@ def test_help_has_a_description_and_an_example(capsys):
     assert exited.value.code == 0
     assert text.split("example:\n", 1)[1].splitlines()[0].strip().startswith("python -m pipeline ablate ")
     assert "retreat only" in " ".join(text.split())
+
+
+def test_class_means_average_the_runs_of_a_class_and_skip_objects_without_trials():
+    from pipeline.ablate import COLUMNS, class_markdown, class_means
+
+    def table(hand, default, switched):
+        rows = []
+        for variant, setting, rate in (("default", "params", default), ("mu", "mu=1", switched)):
+            rows.append({"hand": hand, "variant": variant, "setting": setting, "planner": "mat", "trials": 10,
+                         "force_closure_pct": rate, "physics_success_pct": rate / 2,
+                         "force_closure_delta": rate - default, "physics_success_delta": (rate - default) / 2})  # fmt: skip
+        return pd.DataFrame(rows).reindex(columns=list(COLUMNS))
+
+    tables = {"a": table("armar3", 20.0, 30.0), "b": table("barrett", 40.0, 70.0), "c": table("armar3", 0, 0).iloc[:0]}
+    means = class_means(tables, {"pair": ("a", "b", "c")})
+    switched = means[means.variant == "mu"].iloc[0]
+    assert (switched.runs, switched.trials) == (2, 20)
+    assert (switched.force_closure_pct, switched.force_closure_delta, switched.physics_success_delta) == (50, 20, 10)
+    text = class_markdown(means, {"pair": ("a", "b", "c")})
+    assert "**pair** (a, b, c; 2 runs)" in text and "| default (% of trials) | 30.0 | 15.0 | - | - |" in text
+    assert "| `mu=1` | +20.0 | +10.0 | - | - |" in text

@@ -13,7 +13,7 @@ from rerun.chunk import RrdReader
 from pipeline.hands import get_hand
 from pipeline.kinematics import hand_model
 from pipeline.logbook import file_digest, mcap_log, read_log
-from pipeline.params import Params, SampleParams, SimulateParams
+from pipeline.params import CheckParams, Params, SampleParams, SimulateParams
 from pipeline.plan import run_chain, summary
 from pipeline.recording import record_chain, rerun_recording
 from pipeline.simulation import hand_boxes
@@ -25,7 +25,9 @@ HANDS = ["armar3", "barrett"]
 def recorded(tmp_path_factory):
     folder = tmp_path_factory.mktemp("recorded")
     params = Params(
-        sample=SampleParams(count=3000), simulate=SimulateParams(spheres_per_object=2, baseline_trials=3, workers=1)
+        sample=SampleParams(count=3000),
+        simulate=SimulateParams(spheres_per_object=2, baseline_trials=3, workers=1),
+        checks=CheckParams(trials=2, robust_samples=2),
     )
     artefacts, timings = run_chain("primitive:capsule", params, seed=0, hands=HANDS, simulate=True)
     result = summary(artefacts, timings, source="primitive:capsule", scale=1.0, seed=0)
@@ -112,7 +114,7 @@ def test_mcap_counts_and_one_trial_match_the_trials_table(recorded):
     assert messages[-1][1] == {"stage": "plan", "event": "end"}
     assert {encoding for _, _, encoding in messages} == {"jsonschema"}
     assert topics.count("/timing") == len(
-        ("sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate")
+        ("sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate", "decompose", "check")
     )
     logged = [payload for topic, payload, _ in messages if topic == "/trials"]
     row = trials.iloc[len(trials) // 2]
