@@ -16,6 +16,7 @@ from test_recording import instances, rows_of
 
 from pipeline import dag
 from pipeline.artefacts import MedialSpheres
+from pipeline.grasp_checks import with_checks
 from pipeline.logbook import file_digest, read_log
 from pipeline.objects import load_source
 from pipeline.symmetry import Symmetry
@@ -440,8 +441,8 @@ def test_hands_cli_exports_a_hand_that_plan_accepts_and_renders_pictures(tmp_pat
 
 @pytest.mark.slow
 def test_plan_batch_and_dvc_make_the_same_artefacts(tmp_path):
-    """The three entry points on one mesh, params and seed: the same bytes (batch keeps only the
-    trials, with an ``object`` column in front)."""
+    """The three entry points on one mesh, params and seed: the same bytes, the checks too (batch
+    keeps only the trials, with an ``object`` column in front and the checks on their rows)."""
     import trimesh
 
     meshes = tmp_path / "meshes"
@@ -503,4 +504,5 @@ def test_plan_batch_and_dvc_make_the_same_artefacts(tmp_path):
     assert len(trials) > 3 and (trials.planner == "baseline").sum() == 3
     from_batch = pd.read_parquet(tmp_path / "batch" / "trials" / "block.parquet")
     assert from_batch.object.unique().tolist() == ["block"]
-    pd.testing.assert_frame_equal(from_batch.drop(columns="object"), trials)
+    checks = pd.read_parquet(tmp_path / "plan" / "checks.parquet")  # batch puts them on the trials
+    pd.testing.assert_frame_equal(from_batch.drop(columns="object"), with_checks(trials, checks))
