@@ -156,7 +156,7 @@ def calibration_plots(calibration):
         wide = rows.pivot(index=["bin", "low", "high"], columns="planner", values=["physics_success_pct", "checked"])
         frame = wide["physics_success_pct"].reindex(columns=["mat", "baseline"]).round(2)
         for planner in ("mat", "baseline"):
-            frame[f"{planner}_checked"] = wide["checked"][planner]
+            frame[f"{planner}_checked"] = wide["checked"][planner].fillna(0).astype(int)
         plots[score] = frame.reset_index()
     return plots
 
