@@ -31,6 +31,7 @@ import zlib
 import numpy as np
 import pandas as pd
 
+from .grasp_checks import CLOSED, PLANNERS
 from .params import Params
 from .simulation import check_simulable
 from .trials import baseline_candidates, run_trials, select_candidates
@@ -50,7 +51,6 @@ VARIANTS = (
     ("palm_contacts", False),
     ("mu", 1.0),
 )
-PLANNERS = ("mat", "baseline")
 COLUMNS = (
     "hand",
     "variant",
@@ -65,7 +65,6 @@ COLUMNS = (
     "force_closure_delta",
     "physics_success_delta",
 )
-CLOSED = ("force_closure", "no_force_closure")  # trials that end with a closed hand on the object
 
 
 def _text(value):

@@ -145,7 +145,6 @@ REPORT = Stage(
         "simulate.spheres_per_object",
         "simulate.mu",
         "simulate.cone_edges",
-        "checks.trials",
         "report",
     ),
 )

@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from .arrays import vectors
+from .errors import ArtefactError
 from .robust import perturbed_candidates, robust_scores
 
 PLANNERS = ("mat", "baseline")
@@ -197,17 +198,22 @@ def _physics(surface, parts, hand, table, physics_settings, trial_settings, prog
             progress(len(table), None)
         return outcomes
     model = hand_model(hand, spacing=trial_settings.link_point_spacing_m)
-    check = PhysicsCheck(surface.vertices, surface.faces, hand, model, parts=parts.parts, settings=physics_settings)
+    try:
+        check = PhysicsCheck(surface.vertices, surface.faces, hand, model, parts=parts.parts, settings=physics_settings)
+    except pybullet.error:  # the object or the hand could not be built: every check of it fails
+        outcomes = [("error", np.nan, np.nan) if closed[k] else outcome for k, outcome in enumerate(outcomes)]
+        check = None
     try:
         base, quaternion = vectors(table, "base"), table[[f"base_q{axis}" for axis in "xyzw"]].to_numpy(float)
-        for k in np.flatnonzero(closed):
+        for k in np.flatnonzero(closed) if check else ():
             try:
                 result = check.check(base[k], quaternion[k], np.asarray(table.joints.iloc[k], float))
                 outcomes[k] = (result.outcome, result.slip_m, result.turn_rad)
             except pybullet.error:
                 outcomes[k] = ("error", np.nan, np.nan)
     finally:
-        check.close()
+        if check:
+            check.close()
     if progress:
         progress(len(table), None)
     return outcomes
@@ -246,6 +252,13 @@ def with_checks(trials, checks):
     and missing values (``physics_success`` is a nullable boolean)."""
     frame = trials.copy()
     checked = checks.set_index("trial") if checks is not None else empty_checks().set_index("trial")
+    rows = checked.index.to_numpy()
+    if len(rows) and (
+        rows.max() >= len(frame)
+        or (frame.planner.to_numpy()[rows] != checked.planner.to_numpy()).any()
+        or (frame.outcome.astype(str).to_numpy()[rows] != checked.outcome.to_numpy()).any()
+    ):
+        raise ArtefactError("checks table: its trials are not those of the trials table (stale? rerun its check stage)")
     for column in CHECK_COLUMNS:
         frame[column] = checked[column].reindex(np.arange(len(frame))).to_numpy()
     frame["physics_outcome"] = frame.physics_outcome.astype(object).fillna("").astype(str)

@@ -312,12 +312,12 @@ class CheckParams:
     """... and drives them toward the closed joints closed further by this (clipped at the
     limits), far enough that a touching joint pushes at the hand's ``joint_effort``."""
     settle_damping: float = 0.9
-    """Bullet's linear and angular damping of the weightless object while the fingers squeeze:
-    it settles where their forces balance, or slides out."""
+    """Bullet's linear and angular damping of the object (under gravity) while the fingers
+    squeeze: it settles where their forces and its weight balance, or slides out."""
     settle_s: float = 0.25
-    """Time the fingers squeeze the weightless object before the lift."""
+    """Time the fingers squeeze the damped object before the lift."""
     lift_s: float = 0.5
-    """Time under gravity (a 10 cm lift at 0.2 m/s)."""
+    """Time undamped under gravity after the settle (a 10 cm lift at 0.2 m/s)."""
     shake_g: float = 1.0
     """Each shake: a force of this many times the object's weight along +-x, +-y, +-z ..."""
     shake_s: float = 0.2

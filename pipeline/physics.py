@@ -24,7 +24,7 @@ pose and joints) and runs pybullet's dynamics (headless, its own client):
 Outcome: ``no_grasp`` (the object touches no hand link after the settle), ``dropped`` (no
 link touches it at the end), ``slipped`` (it moved more than ``slip_m`` or turned more than
 ``slip_rad`` relative to the hand, still touching), ``held``; ``slip_m`` is how far its centre
-moved from where the squeeze left it.
+moved from where the settle left it.
 
 The object's convex parts are an artefact of their own (:class:`ConvexParts`, stage
 ``decompose``), computed once per object and scale; the checks of a run's trials are
@@ -49,6 +49,7 @@ from scipy.spatial.transform import Rotation
 
 from .artefacts import _Artefact, content_key
 from .bullet import BulletClient, load_hand, pybullet
+from .errors import DegenerateGeometryError
 from .simulation import mass_properties
 
 
@@ -86,7 +87,7 @@ class PhysicsSettings:
 @dataclass(frozen=True)
 class PhysicsResult:
     """``outcome`` (no_grasp, dropped, slipped, held), ``slip_m`` (m) and ``turn_rad`` of the
-    object relative to the hand from the end of the squeeze to the end."""
+    object relative to the hand from the end of the settle to the end."""
 
     outcome: str
     slip_m: float = float("nan")
@@ -163,6 +164,8 @@ def decompose(surface, *, vhacd_resolution=1000000):
         parts = convex_parts(surface.vertices, surface.faces, client=client.client, resolution=vhacd_resolution)
     finally:
         client.close()
+    if not parts:
+        raise DegenerateGeometryError(f"{surface.source}: V-HACD found no convex part of the mesh")
     sizes = [len(part) for part in parts]
     return ConvexParts(
         np.concatenate(parts) if parts else np.empty((0, 3)),
@@ -195,9 +198,15 @@ class PhysicsCheck(BulletClient):
 
     def __init__(self, vertices, faces, hand, model, *, parts=None, settings=None):
         self.settings, self.model = settings or PhysicsSettings.defaults(), model
-        settings = self.settings
         super().__init__()
-        call = self._call
+        try:
+            self._build(vertices, faces, hand, parts)
+        except BaseException:
+            self.close()  # a failed set-up leaves no pybullet client behind
+            raise
+
+    def _build(self, vertices, faces, hand, parts):
+        settings, call = self.settings, self._call
         call(pybullet.setTimeStep, settings.timestep_s)
         parts = convex_parts(vertices, faces, client=self.client) if parts is None else parts
         shape = self._compound(parts)
@@ -224,9 +233,14 @@ class PhysicsCheck(BulletClient):
         which pybullet reads as a compound of their hulls."""
         from scipy.spatial import ConvexHull
 
+        from scipy.spatial import QhullError
+
         lines, offset = [], 1
         for number, part in enumerate(parts):
-            hull = ConvexHull(part)
+            try:
+                hull = ConvexHull(part)
+            except QhullError:  # a flat part (V-HACD on a thin plate): joggled into a solid
+                hull = ConvexHull(part, qhull_options="QJ")
             lines.append(f"o part{number}")
             lines += [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in part]
             lines += [f"f {a + offset} {b + offset} {c + offset}" for a, b, c in hull.simplices]

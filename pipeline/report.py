@@ -50,7 +50,7 @@ def results(trials, runs):
     closed = trials.outcome == "force_closure"
     held = trials.physics_success.astype(float)  # NaN where unchecked: the means are over the checked
     grouped = trials.assign(
-        closed=closed, closed_epsilon=trials.epsilon.where(closed), held=held, checked=held.notna()
+        closed=closed, closed_epsilon=trials.epsilon.where(closed), held=held, checked=_checked(trials)
     ).groupby(KEYS + ["planner"], observed=True)
     table = pd.DataFrame(
         {
@@ -86,6 +86,11 @@ def results(trials, runs):
     return frame.reset_index()
 
 
+def _checked(trials):
+    """Trials that the check stage sampled (a physics check, robust force closure or both)."""
+    return (trials.physics_outcome != "") | trials.robust_fc.notna()
+
+
 def metrics(trials, table):
     """Headline numbers for ``dvc metrics show``: force-closure rate of each planner overall, per
     hand and per scale (from ``trials``), and in how many runs MAT beats the baseline (from
@@ -94,13 +99,14 @@ def metrics(trials, table):
     def rates(frame):
         closed = frame.outcome == "force_closure"
         held = frame.physics_success.dropna().astype(float)
+        checked = int(_checked(frame).sum())
         robust = frame.robust_fc.dropna()
         return {
             "force_closure_rate": round(float(closed.mean()), 4) if len(frame) else float("nan"),
             "trials": int(len(frame)),
             "physics_success_rate": round(float(held.mean()), 4) if len(held) else float("nan"),
             "robust_fc": round(float(robust.mean()), 4) if len(robust) else float("nan"),
-            "checked": int(len(held)),
+            "checked": checked,
         }
 
     out = {planner: rates(trials[trials.planner == planner]) for planner in ("mat", "baseline")}
@@ -166,7 +172,7 @@ def timing_table(timings):
     runs, total, median and largest seconds of the work, the part of it spent recording (.rrd,
     rerun's import included), and the total of whole processes (imports included), in pipeline order."""
     order = ["sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate", "decompose", "check"]
-    order.append("report")
+    order += ["report"]
     frame = pd.DataFrame(timings, columns=["stage", "seconds", "process_seconds", "record_seconds"])
     frame["process_seconds"] = frame.process_seconds.fillna(frame.seconds)
     frame["record_seconds"] = frame.record_seconds.fillna(0.0)

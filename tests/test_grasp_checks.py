@@ -7,7 +7,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.grasp_checks import check_trials, empty_checks, summary
+from pipeline.errors import ArtefactError
+from pipeline.grasp_checks import check_trials, empty_checks, summary, with_checks
 from pipeline.hands import HANDS
 from pipeline.params import CheckParams, SimulateParams
 from pipeline.physics import decompose
@@ -75,3 +76,26 @@ def test_summary_counts_the_checked_trials(run):
     assert result["mat"]["physics_success_rate"] == pytest.approx(mat.physics_success.mean())
     assert result["mat"]["robust_fc"] == pytest.approx(mat.robust_fc.mean())
     assert sum(result["mat"]["physics_outcomes"].values()) == 5
+
+
+def test_a_checks_table_of_other_trials_is_refused(run):
+    _, trials, _ = run
+    table = checked(run)
+    with pytest.raises(ArtefactError, match="not those of the trials table"):
+        with_checks(trials.iloc[: table.trial.max()], table)  # its last checked trial is gone
+    shuffled = trials.assign(planner=trials.planner.map({"mat": "baseline", "baseline": "mat"}))
+    with pytest.raises(ArtefactError):
+        with_checks(shuffled, table)
+
+
+def test_the_report_counts_robust_only_checks(run):
+    """With the physics check off, the report still counts the checked trials and shows their
+    robust force closure (no physics success)."""
+    from pipeline import report
+
+    _, trials, _ = run
+    key = ("cube", 1.0, "parallel_jaw")
+    combined = report.combine({key: trials}, {key: checked(run, physics=False)})
+    metrics = report.metrics(combined, report.results(combined, [key]))
+    assert metrics["mat"]["checked"] == 5 and 0 <= metrics["mat"]["robust_fc"] <= 1
+    assert np.isnan(metrics["mat"]["physics_success_rate"])
