@@ -1,4 +1,4 @@
-"""Command line: ``medial-grasp {plan,batch,bench,hands,objects,ablate} ...`` (also ``python -m pipeline``;
+"""Command line: ``medial-grasp {plan,batch,bench,hands,objects,ablate,export} ...`` (also ``python -m pipeline``;
 ``--help`` on each)."""
 
 import argparse
@@ -255,7 +255,42 @@ def main(argv=None):
     )
     ablate.add_argument("--out", default=None, help="also write the table to this CSV file")
     ablate.add_argument("--params", default=None, help=PARAMS_HELP)
+    export = _subcommand(
+        commands,
+        "export",
+        help="write a run's grasps for a robot: ACRONYM-style HDF5 or JSON, one file per object, scale and hand",
+        description="Export every grasp whose hand closed (force_closure, no_force_closure, no_contact) of a run,\n"
+        "best first, with the hand's pose and joints in the object frame, its pre-grasp pose and the\n"
+        "checks; beside each file the object mesh (.obj, times object/scale = the simulated mesh) and\n"
+        "the hand's URDF. RUN_DIR: a `plan --out` folder, a `batch` output, the DVC data/ tree or\n"
+        "the report/ folder (see docs/export.md).",
+        examples=[
+            f"{prog} export out/mug --format acronym --out grasps/mug",
+            f"{prog} export data --format json --out grasps/all --standoff 0.08",
+            f"{prog} export report --format acronym --out grasps/report   # meshes from ../data",
+        ],
+    )
+    export.add_argument("run_dir", metavar="RUN_DIR", help="plan folder, batch output, data/ tree or report/ folder")
+    export.add_argument("--format", required=True, choices=("acronym", "json"), help="acronym: HDF5 (.h5); json")
+    export.add_argument("--out", required=True, help="folder for the files")
+    export.add_argument(
+        "--standoff",
+        type=float,
+        default=0.05,
+        help="metres the pre-grasp pose stands back beyond the start of the trial's approach (default: %(default)s)",
+    )
+    export.add_argument(
+        "--hand", action="append", default=[], help="spec .yaml/.toml of a hand that is not built in (repeatable)"
+    )
+    export.add_argument(
+        "--data", default=None, help="the DVC data/ tree of a report/ folder (default: RUN_DIR/../data)"
+    )
+    export.add_argument(
+        "--scale", type=float, default=1.0, help="a batch output's --scale (not recorded in it; default: %(default)s)"
+    )
     args = parser.parse_args(argv)
+    if args.command == "export":
+        return _export(args)
     if args.command == "objects":
         return _objects(args)
     if args.command == "plan":
@@ -419,6 +454,24 @@ def _plan(args):
         brief["baseline_force_closure_rate"] = result["baseline"]["force_closure_rate"]
     print(json.dumps(brief))
     print(f"wrote {args.out}/summary.json")
+
+
+def _export(args):
+    import time
+
+    from .export import export, find_runs
+    from .hands import load_hand
+
+    start = time.perf_counter()
+    hands = [load_hand(path) for path in args.hand]
+    runs = find_runs(
+        args.run_dir, data=args.data, scale=args.scale, warn=lambda line: print(f"warning: {line}", file=sys.stderr)
+    )
+    written = export(runs, args.out, fmt=args.format, standoff=args.standoff, hands=hands, progress=print)
+    print(
+        f"export {args.run_dir} -> {args.out}: {len(written)} files, {sum(count for _, count in written)} grasps "
+        f"in {time.perf_counter() - start:.1f} s"
+    )
 
 
 def _ablate(args):

@@ -31,10 +31,14 @@ import zlib
 import numpy as np
 import pandas as pd
 
-from .grasp_checks import CLOSED, PLANNERS
+from .grasp_checks import CLOSED
 from .params import Params
 from .simulation import check_simulable
+from .trials import PLANNERS as ALL_PLANNERS
 from .trials import baseline_candidates, run_trials, select_candidates
+
+#: the planners ablated: the MAT candidates against the baseline
+PLANNERS = ALL_PLANNERS[:2]
 
 #: (simulate key, value): the variants, each switching one modelling choice of the trial
 VARIANTS = (

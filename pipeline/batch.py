@@ -51,6 +51,8 @@ SUMMARY_COLUMNS = {
     "baseline_physics_success_rate": float,
     "robust_fc": float,
     "baseline_robust_fc": float,
+    "encompassing_trials": "Int64",
+    "encompassing_force_closure_rate": float,
     "seconds": float,
 }
 DONE = ("ok", "error")  # outcomes that the same key would give again; "failed" is retried
@@ -83,7 +85,17 @@ def object_key(path, *, scale, seed, hands, params):
     """Content key of one object's batch run: the mesh bytes and everything the chain reads."""
     used = {
         section: dataclasses.asdict(getattr(params, section))
-        for section in ("sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate", "checks")
+        for section in (
+            "sample",
+            "medial_axis",
+            "mat",
+            "sphere_grid",
+            "classify",
+            "concavity",
+            "candidates",
+            "simulate",
+            "checks",
+        )
     }
     used["candidates"].pop("hands")
     used["simulate"].pop("workers")  # results do not depend on it
@@ -132,6 +144,8 @@ def plan_object(name, path, *, scale, seed, hands, params):
         baseline_physics_success_rate=checked["baseline"]["physics_success_rate"],
         robust_fc=checked["mat"]["robust_fc"],
         baseline_robust_fc=checked["baseline"]["robust_fc"],
+        encompassing_trials=result["encompassing"]["trials"],
+        encompassing_force_closure_rate=result["encompassing"]["force_closure_rate"],
         seconds=time.perf_counter() - start,
     )
     if not len(trials):  # no candidate fits a hand: no trials file (an empty table would have other column types)

@@ -157,7 +157,7 @@ def run_symmetry_bench(*, sphere_counts=(10000, 100000), repeats=3, out=print):
             for _ in range(repeats):
                 start = time.perf_counter()
                 symmetry = classify(grid, **vars(ClassifyParams()))
-                table = generate_for_hands(symmetry, hands)
+                table = generate_for_hands(symmetry, None, hands)
                 times.append(time.perf_counter() - start)
             seconds = float(np.median(times))
             row = dict(

@@ -13,6 +13,11 @@ get candidates. Per class:
 - ``isolated`` (a spherical part): the six directions +-x, +-y, +-z of the object frame,
   with P_o = z for the four horizontal approaches and P_o = x for the two vertical ones.
 
+- ``encompassing`` (:mod:`pipeline.concavity`): the filled object's spheres inside a
+  container's concavity no wider than ``max_width_ratio`` x the hand's limit, their candidates
+  made by their own class on the filled object as above, labelled ``encompassing``;
+  ``sphere_index`` (and so ``id``) of these rows indexes the filled object's sphere grid.
+
 With ``flipped_candidates`` (Simox's default) every candidate is repeated with P_o = -P_o,
 so an axis sphere gives 8 candidates and a rim sphere 2.
 
@@ -24,6 +29,8 @@ import pandas as pd
 
 from .symmetry import AXIS, CLASSES, ISOLATED, PAIR, RIM
 
+#: ``sphere_class`` of the candidates: the classes of :mod:`pipeline.symmetry` and ``encompassing``
+CANDIDATE_CLASSES = CLASSES + ("encompassing",)
 IDS_PER_SPHERE = 64
 _ISOLATED_APPROACH = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
 _ISOLATED_ORIENT = np.array([[0, 0, 1], [0, 0, 1], [0, 0, 1], [0, 0, 1], [1, 0, 0], [1, 0, 0]], float)
@@ -47,7 +54,7 @@ COLUMNS = [
 ]
 
 
-def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, preshape=None):
+def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, preshape=None, label=None):
     """Candidate grasps for one hand, as a table.
 
     Parameters
@@ -59,6 +66,8 @@ def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, 
     flipped_candidates : bool
     preshape : str, optional
         Defaults to the hand's first preshape.
+    label : str, optional
+        ``sphere_class`` of every row (default: the sphere's class).
 
     Returns
     -------
@@ -111,7 +120,10 @@ def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, 
             "hand": hand.name,
             "id": sphere_index * IDS_PER_SPHERE + rank,
             "sphere_index": sphere_index,
-            "sphere_class": pd.Categorical(np.asarray(CLASSES)[class_id[row]], categories=CLASSES),
+            "sphere_class": pd.Categorical(
+                np.asarray(CLASSES)[class_id[row]] if label is None else np.full(len(row), label),
+                categories=CANDIDATE_CLASSES,
+            ),
             "diameter_m": 2.0 * np.asarray(symmetry.radii)[row],
             "preshape": preshape or hand.default_preshape,
             "grasp_x": centers[:, 0],
@@ -128,22 +140,30 @@ def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, 
     return table.sort_values("id", kind="stable").reset_index(drop=True)
 
 
-def generate_for_hands(symmetry, hands, *, approach_directions=4, flipped_candidates=True):
-    """The ``candidates`` stage as a pure function: one table, a block of rows per hand.
+def generate_for_hands(
+    symmetry, concavities, hands, *, approach_directions=4, flipped_candidates=True, max_width_ratio=1.0
+):
+    """The ``candidates`` stage as a pure function: one table, a block of rows per hand, its
+    ``encompassing`` candidates after the others.
 
     Parameters
     ----------
     symmetry : Symmetry
+    concavities : Concavities or None
+        The encompassing spheres (stage ``concavity``); None: none.
     hands : list of Hand
+    max_width_ratio : float
+        See :meth:`pipeline.concavity.Concavities.spheres_for`.
 
     Returns
     -------
-    pandas.DataFrame, columns :data:`COLUMNS`; ``(hand, id)`` is unique
+    pandas.DataFrame, columns :data:`COLUMNS`; ``(hand, sphere_class == "encompassing", id)`` is unique
     """
-    return pd.concat(
-        [
-            generate(symmetry, hand, approach_directions=approach_directions, flipped_candidates=flipped_candidates)
-            for hand in hands
-        ],
-        ignore_index=True,
-    )
+    options = dict(approach_directions=approach_directions, flipped_candidates=flipped_candidates)
+    tables = []
+    for hand in hands:
+        tables.append(generate(symmetry, hand, **options))
+        if concavities is not None and len(concavities):
+            spheres = concavities.spheres_for(hand.max_graspable_diameter, max_width_ratio)
+            tables.append(generate(spheres, hand, **options, label="encompassing"))
+    return pd.concat(tables, ignore_index=True)

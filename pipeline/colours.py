@@ -11,12 +11,14 @@ CLASS_COLOURS = {
     "rim": (0.1, 0.65, 0.1),
     "pair": (0.6, 0.3, 0.75),
     "isolated": (0.0, 0.6, 0.85),
+    "encompassing": (0.85, 0.0, 0.35),
 }
 CLASS_LABELS = {
     "axis": "P_d, symmetry axis",
     "rim": "P_d, symmetry plane (rim)",
     "pair": "P_d, pair",
     "isolated": "P_d, isolated sphere",
+    "encompassing": "P_d, encompassing a concavity",
 }
 E1_COLOUR, E2_COLOUR, ORIENT_COLOUR, REDUCED_COLOUR = (0.75, 0.0, 0.0), (0.1, 0.25, 0.8), (1.0, 0.0, 1.0), (0.6,) * 3
 

@@ -124,6 +124,7 @@ def sphere_figure(
     max_points=20000,
     seed=0,
     view=(25.0, -60.0),
+    concavities=None,
 ):
     """The grid of medial spheres and the candidate grasps of one object (paper Fig. 5).
 
@@ -149,6 +150,9 @@ def sphere_figure(
     seed : int
         Seeds the subsets; the same seed gives the same image.
     view : (elevation, azimuth) float, degrees
+    concavities : Concavities, optional
+        The object's encompassing spheres (stage ``concavity``): drawn on the right in the
+        ``encompassing`` colour with their candidates; without them those candidates are left out.
 
     Returns
     -------
@@ -167,7 +171,15 @@ def sphere_figure(
     if hand is None:
         hand = str(candidates.hand.iloc[0]) if len(candidates) else ""
     mine = candidates[candidates.hand == hand]
-    segments, kinds, drawn = candidate_lines(symmetry, mine, length=length, max_lines=max_lines, seed=seed)
+    around = (mine.sphere_class == "encompassing").to_numpy()
+    segments, kinds, drawn = candidate_lines(symmetry, mine[~around], length=length, max_lines=max_lines, seed=seed)
+    if concavities is not None and around.any():
+        more = candidate_lines(
+            concavities.spheres_for(np.inf), mine[around], length=length, max_lines=max_lines // 2, seed=seed
+        )
+        segments, kinds, drawn = np.concatenate([segments, more[0]]), np.concatenate([kinds, more[1]]), drawn + more[2]
+    else:
+        mine = mine[~around]
     if len(segments):
         low = np.minimum(low, segments.reshape(-1, 3).min(axis=0))
         high = np.maximum(high, segments.reshape(-1, 3).max(axis=0))
@@ -199,6 +211,10 @@ def sphere_figure(
 
     right = figure.add_axes((0.52, 0.03, 0.46, top - 0.03), projection="3d")
     right.scatter(*np.asarray(symmetry.centers).T, s=0.5, c=[REDUCED_COLOUR], linewidths=0, depthshade=False)
+    if concavities is not None and len(concavities):
+        right.scatter(
+            *np.asarray(concavities.centers).T, s=0.5, c=[CLASS_COLOURS["encompassing"]], linewidths=0, depthshade=False
+        )
     palette = {"e1": E1_COLOUR, "e2": E2_COLOUR, "orient": ORIENT_COLOUR, **CLASS_COLOURS}
     if len(segments):
         right.add_collection3d(
@@ -223,8 +239,8 @@ def sphere_figure(
     return _pixels(figure)
 
 
-def best_grasps(trials, *, hand=None, count=3):
-    """The ``count`` force-closure MAT trials with the highest epsilon, best first.
+def best_grasps(trials, *, hand=None, count=3, planner="mat"):
+    """The ``count`` force-closure trials of ``planner`` with the highest epsilon, best first.
 
     Parameters
     ----------
@@ -241,7 +257,7 @@ def best_grasps(trials, *, hand=None, count=3):
     """
     if len(trials) == 0:
         return trials
-    keep = (trials.outcome == "force_closure").to_numpy() & (trials.planner == "mat").to_numpy()
+    keep = (trials.outcome == "force_closure").to_numpy() & (trials.planner == planner).to_numpy()
     if hand is not None:
         keep &= (trials.hand == hand).to_numpy()
     rows = np.flatnonzero(keep)
@@ -249,7 +265,7 @@ def best_grasps(trials, *, hand=None, count=3):
     return trials.iloc[order[:count]]
 
 
-def grasp_images(surface, hand, trials, *, count=3, size=(400, 400)):
+def grasp_images(surface, hand, trials, *, count=3, size=(400, 400), planner="mat"):
     """Pictures of ``hand``'s best force-closure grasps on the object (paper Fig. 7).
 
     Parameters
@@ -258,7 +274,7 @@ def grasp_images(surface, hand, trials, *, count=3, size=(400, 400)):
         The object; its mesh is drawn.
     hand : Hand
     trials : pandas.DataFrame
-        The trials table; only ``hand``'s MAT trials count (see :func:`best_grasps`).
+        The trials table; only ``hand``'s trials of ``planner`` count (see :func:`best_grasps`).
     count : int
     size : (width, height) int, pixels
 
@@ -271,7 +287,7 @@ def grasp_images(surface, hand, trials, *, count=3, size=(400, 400)):
     from .render import render_hand
 
     images = []
-    for row in best_grasps(trials, hand=hand.name, count=count).itertuples():
+    for row in best_grasps(trials, hand=hand.name, count=count, planner=planner).itertuples():
         joints = np.asarray(row.joints, dtype=np.float64)
         if joints.shape != (len(hand.limits),):
             raise BadInputError(

@@ -32,8 +32,8 @@ import pandas as pd
 from .arrays import vectors
 from .errors import ArtefactError
 from .robust import perturbed_candidates, robust_scores
+from .trials import PLANNERS
 
-PLANNERS = ("mat", "baseline")
 #: the checks table's columns that :func:`with_checks` puts on the trials
 CHECK_COLUMNS = (
     "physics_outcome",
@@ -233,7 +233,7 @@ def summarise_checks(checks):
 
 
 def summary(checks):
-    """The JSON-ready checks of a run: per planner (``mat``, ``baseline``) and per hand."""
+    """The JSON-ready checks of a run: per planner (``mat``, ``baseline``, ``encompassing``) and per hand."""
     return {
         **{planner: summarise_checks(checks[checks.planner == planner]) for planner in PLANNERS},
         "per_hand": {

@@ -6,7 +6,7 @@ A source string is one of
   [0.10, 0.06, 0.02]), ``capsule`` (radius 0.02, height 0.10 between the cap centres),
   ``cylinder`` (radius 0.025, height 0.12), ``sphere`` (radius 0.04), ``torus``
   (major_radius 0.05, minor_radius 0.012), ``plate`` (extents [0.10, 0.10, 0.006]), and the
-  procedural ``quadruped`` and ``mug`` of :mod:`pipeline.procedural`;
+  procedural ``quadruped``, ``mug`` (radius 0.05) and others of :mod:`pipeline.procedural`;
 - ``pybullet:RELPATH``: a mesh shipped in the installed ``pybullet_data`` package;
 - a path to an OBJ/STL/PLY/OFF/GLB mesh, or a PLY point cloud with or without normals.
 

@@ -155,6 +155,28 @@ class ClassifyParams:
 
 
 @dataclass(frozen=True)
+class ConcavityParams:
+    """Concavities and the grasps that encompass them (stage ``concavity``,
+    :mod:`pipeline.concavity`; the paper's section V)."""
+
+    enabled: bool = True
+    """False: no concavities, no ``encompassing`` candidates (the concavity artefacts are empty)."""
+    min_volume: float = 0.05
+    """Smallest concavity counted, as a fraction of the object's convex hull volume."""
+    flat_mouth_deg: float = 5.0
+    """A concavity counts when it opens through one flat mouth (a container): every face of its
+    opening within this of their mean normal."""
+    max_width_ratio: float = 1.0
+    """A hand gets a concavity's encompassing candidates when the concavity is at most this x the
+    hand's ``max_graspable_diameter`` wide (its largest medial sphere)."""
+
+    def __post_init__(self):
+        _require(0 < self.min_volume < 1, "concavity", "min_volume", "must be in (0, 1) (x the hull's volume)")
+        _require(0 < self.flat_mouth_deg < 90, "concavity", "flat_mouth_deg", "must be in (0, 90) degrees")
+        _require(self.max_width_ratio > 0, "concavity", "max_width_ratio", "must be > 0")
+
+
+@dataclass(frozen=True)
 class CandidatesParams:
     """Candidate grasps (stage ``candidates``, paper III-C)."""
 
@@ -402,6 +424,7 @@ class Params:
     mat: MatParams = field(default_factory=MatParams)
     sphere_grid: SphereGridParams = field(default_factory=SphereGridParams)
     classify: ClassifyParams = field(default_factory=ClassifyParams)
+    concavity: ConcavityParams = field(default_factory=ConcavityParams)
     candidates: CandidatesParams = field(default_factory=CandidatesParams)
     simulate: SimulateParams = field(default_factory=SimulateParams)
     checks: CheckParams = field(default_factory=CheckParams)

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from .artefacts import atomic_write, json_bytes, write_table
+from .concavity import SECTIONS as CONCAVITY_SECTIONS
 from .dag import ARTEFACTS, STAGES
 from .dag import function as stage_function
 from .hands import get_hand
@@ -77,10 +78,15 @@ def run_chain(
             rng=np.random.default_rng(seed),
             source_key=source_key(source, shape),
         ),
+        "concavity": dict(
+            seed=seed,
+            **{name: dataclasses.asdict(getattr(params, name)) for name in CONCAVITY_SECTIONS},
+        ),
         "candidates": dict(
             hands=hand_specs,
             approach_directions=params.candidates.approach_directions,
             flipped_candidates=params.candidates.flipped_candidates,
+            max_width_ratio=params.concavity.max_width_ratio,
         ),
         "simulate": dict(
             hands=hand_specs,
@@ -145,6 +151,17 @@ def summary(artefacts, timings, *, source, scale, seed, hands=(), warnings=()):
         },
         "classes": dict(zip(CLASSES, np.bincount(artefacts["classify"].class_id, minlength=len(CLASSES)).tolist())),
         "candidates": candidates,
+        **(
+            {
+                "concavities": {
+                    "counted": int(artefacts["concavity"].counted.sum()),
+                    "width_m": artefacts["concavity"].width[artefacts["concavity"].counted].tolist(),
+                    "encompassing_spheres": len(artefacts["concavity"]),
+                }
+            }
+            if "concavity" in artefacts
+            else {}
+        ),
         **(trial_summary(artefacts["trials"]) if "trials" in artefacts else {}),
         **({"checks": checks_summary(artefacts["check"])} if "check" in artefacts else {}),
         "keys": {stage: artefact.key for stage, artefact in artefacts.items() if hasattr(artefact, "key")},

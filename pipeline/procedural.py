@@ -51,13 +51,13 @@ def quadruped():
     return _to_trimesh(manifold3d.Manifold.batch_boolean(parts, manifold3d.OpType.Add))
 
 
-def mug():
-    """Mug 12 cm tall: body of outer radius 5 cm (10 cm across, wider than 9.4 cm), 6 mm wall,
-    8 mm base, open top; a D-shaped handle of 8 mm radius on the +x side."""
-    outer = manifold3d.Manifold.cylinder(0.12, 0.05, 0.05, _SEGMENTS)
-    cavity = manifold3d.Manifold.cylinder(0.12, 0.044, 0.044, _SEGMENTS).translate([0, 0, 0.008])
+def mug(radius=0.05):
+    """Mug 12 cm tall: body of outer ``radius`` (m; 5 cm: 10 cm across, wider than 9.4 cm), 6 mm
+    wall, 8 mm base, open top; a D-shaped handle of 8 mm radius on the +x side."""
+    outer = manifold3d.Manifold.cylinder(0.12, radius, radius, _SEGMENTS)
+    cavity = manifold3d.Manifold.cylinder(0.12, radius - 0.006, radius - 0.006, _SEGMENTS).translate([0, 0, 0.008])
     ring = manifold3d.CrossSection.circle(0.008, 48).translate([0.035, 0]).revolve(_SEGMENTS)
-    handle = ring.rotate([90, 0, 0]).translate([0.05, 0, 0.06])
+    handle = ring.rotate([90, 0, 0]).translate([radius, 0, 0.06])
     return _to_trimesh(outer + handle - cavity)
 
 

@@ -7,7 +7,9 @@ rerun entities (metres, the object frame; ``root`` is ``/<object>``): ``surface/
 coloured red -> green -> blue by diameter, object angle per sphere), ``reduced`` (the reduced
 set, coloured by class), ``symmetry/e1``, ``symmetry/e2``, ``symmetry/cog`` (spheres carrying
 candidates), ``candidates/<hand>/approach`` (arrows ending at P_g along P_d) and
-``candidates/<hand>/orient`` (P_o marks), and on the ``trial`` timeline, one step per trial,
+``candidates/<hand>/orient`` (P_o marks), ``concavities/<n>`` (the concavities' solids, counted
+ones in the ``encompassing`` colour) and ``encompassing_spheres`` (the filled object's spheres in
+them), and on the ``trial`` timeline, one step per trial,
 ``trials/<hand>/hand/{approach,retracted,closed}`` (the hand's link boxes),
 ``trials/<hand>/joints`` (the closed joint values, rad, in the order of the hand's limits),
 ``trials/<hand>/contacts`` with ``normals`` and ``cones``, and the scalars ``epsilon/<hand>`` and
@@ -127,6 +129,42 @@ def log_symmetry(stream, root, symmetry, *, with_candidates=None):
             static=True,
         )
     stream.log(f"{root}/symmetry/cog", rr.Points3D(symmetry.cog[chosen], colors=(0, 0, 0)), static=True)
+
+
+def log_concavities(stream, root, concavities):
+    """The concavities' solids (counted ones in the ``encompassing`` colour, the others grey)
+    and the filled object's encompassing spheres in the same colour."""
+    import rerun as rr
+
+    for number in range(len(concavities.volume)):
+        faces = concavities.faces[concavities.face_part == number]
+        colour = CLASS_COLOURS["encompassing"] if concavities.counted[number] else CLASS_COLOURS["interior"]
+        stream.log(
+            f"{root}/concavities/{number}",
+            rr.Mesh3D(
+                vertex_positions=concavities.vertices,
+                triangle_indices=faces,
+                albedo_factor=(*colour, 90),
+            ),
+            rr.AnyValues(
+                volume_m3=concavities.volume[number],
+                width_m=concavities.width[number],
+                mouth_width_m=concavities.mouth_width[number],
+                mouths=concavities.mouths[number],
+            ),
+            static=True,
+        )
+    stream.log(
+        f"{root}/encompassing_spheres",
+        rr.Ellipsoids3D(
+            centers=concavities.centers,
+            radii=concavities.radii,
+            colors=CLASS_COLOURS["encompassing"],
+            fill_mode="majorwireframe",
+        ),
+        rr.AnyValues(concavity=concavities.part, sphere_index=concavities.sphere_index),
+        static=True,
+    )
 
 
 def log_candidates(stream, root, candidates, *, length=None):
@@ -312,7 +350,14 @@ def record_chain(rrd_path, mcap_path, artefacts, summary_dict, *, name, hands, s
         send_blueprint(stream, root)
         log_surface(stream, root, surface)
         log_spheres(stream, root, artefacts["mat"])
-        log_symmetry(stream, root, artefacts["classify"], with_candidates=np.unique(candidates.sphere_index))
+        log_symmetry(
+            stream,
+            root,
+            artefacts["classify"],
+            with_candidates=np.unique(candidates.sphere_index[candidates.sphere_class != "encompassing"]),
+        )
+        if "concavity" in artefacts:
+            log_concavities(stream, root, artefacts["concavity"])
         log_candidates(stream, root, candidates)
         if "trials" in artefacts:
             trials, contacts = artefacts["trials"], artefacts["contacts"]

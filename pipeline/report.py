@@ -10,6 +10,7 @@ import pandas as pd
 
 from .grasp_checks import CHECK_COLUMNS, with_checks
 from .simulation import OUTCOMES
+from .trials import PLANNERS
 
 HAND_TITLES = {"armar3": "ARMAR-III", "barrett": "Barrett", "parallel_jaw": "parallel jaw"}
 KEYS = ["object", "scale", "hand"]
@@ -35,8 +36,9 @@ def combine(tables, checks=None):
 
 
 def results(trials, runs):
-    """One row per run (object, scale, hand) and planner side by side: trials, force-closure
-    rate (%), mean epsilon over the force-closure trials, and the MAT outcome counts.
+    """One row per run (object, scale, hand) and planner (:data:`pipeline.trials.PLANNERS`) side
+    by side: trials, force-closure rate (%), mean epsilon over the force-closure trials, checks,
+    and the MAT outcome counts.
 
     Parameters
     ----------
@@ -63,7 +65,7 @@ def results(trials, runs):
         }
     ).unstack("planner")
     frame = pd.DataFrame(index=index)
-    for planner in ("mat", "baseline"):
+    for planner in PLANNERS:
         for column in (
             "trials",
             "force_closure_pct",
@@ -74,10 +76,9 @@ def results(trials, runs):
         ):
             values = table[(column, planner)] if (column, planner) in table.columns else pd.Series(dtype=float)
             frame[f"{planner}_{column}"] = values.reindex(index)
-    frame["mat_trials"] = frame.mat_trials.fillna(0).astype(int)
-    frame["baseline_trials"] = frame.baseline_trials.fillna(0).astype(int)
-    frame["mat_checked"] = frame.mat_checked.fillna(0).astype(int)
-    frame["baseline_checked"] = frame.baseline_checked.fillna(0).astype(int)
+    for planner in PLANNERS:
+        for column in ("trials", "checked"):
+            frame[f"{planner}_{column}"] = frame[f"{planner}_{column}"].fillna(0).astype(int)
     mat = trials[trials.planner == "mat"]
     outcomes = mat.groupby(KEYS, observed=True).outcome.value_counts().unstack(fill_value=0)
     for outcome in OUTCOMES:
@@ -92,9 +93,9 @@ def _checked(trials):
 
 
 def metrics(trials, table):
-    """Headline numbers for ``dvc metrics show``: force-closure rate of each planner overall, per
-    hand and per scale (from ``trials``), and in how many runs MAT beats the baseline (from
-    :func:`results`' ``table``)."""
+    """Headline numbers for ``dvc metrics show``: force-closure rate of each planner overall (the
+    encompassing candidates' too), of MAT and the baseline per hand and per scale (from
+    ``trials``), and in how many runs MAT beats the baseline (from :func:`results`' ``table``)."""
 
     def rates(frame):
         closed = frame.outcome == "force_closure"
@@ -109,7 +110,7 @@ def metrics(trials, table):
             "checked": checked,
         }
 
-    out = {planner: rates(trials[trials.planner == planner]) for planner in ("mat", "baseline")}
+    out = {planner: rates(trials[trials.planner == planner]) for planner in PLANNERS}
     for key in ("hand", "scale"):
         for rate, prefix in (
             ("force_closure_rate", ""),
@@ -171,8 +172,8 @@ def timing_table(timings):
     """Per-stage wall time from ``[{"stage", "seconds", "process_seconds", "record_seconds"}, ...]``:
     runs, total, median and largest seconds of the work, the part of it spent recording (.rrd,
     rerun's import included), and the total of whole processes (imports included), in pipeline order."""
-    order = ["sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate", "decompose", "check"]
-    order += ["report"]
+    order = ["sample", "medial_axis", "mat", "sphere_grid", "classify", "concavity", "candidates", "simulate"]
+    order += ["decompose", "check", "report"]
     frame = pd.DataFrame(timings, columns=["stage", "seconds", "process_seconds", "record_seconds"])
     frame["process_seconds"] = frame.process_seconds.fillna(frame.seconds)
     frame["record_seconds"] = frame.record_seconds.fillna(0.0)
@@ -371,6 +372,24 @@ def markdown(table, metrics_dict, timings, *, figures=(), settings=""):
             "Runs without MAT trials (no sphere of the reduced set fits the hand): "
             + ", ".join(f"{row.object} x{row.scale:g} {row.hand}" for row in empty.itertuples())
             + ".",
+            "",
+        ]
+    if table.encompassing_trials.sum():
+        around = metrics_dict["encompassing"]
+        parts += [
+            "## Grasps that encompass a concavity (paper V, future work)",
+            "",
+            f"Candidates around the outside of a container (stage `concavity`): {around['trials']} trials, "
+            f"force closure {rate(around['force_closure_rate'])}"
+            + (
+                f", held in the physics check {rate(around['physics_success_rate'])} and robust force closure "
+                f"{rate(around['robust_fc'])} of {around['checked']} checked"
+                if around["checked"]
+                else ""
+            )
+            + '. Runs without such candidates read "-".',
+            "",
+            table_one(table, "encompassing"),
             "",
         ]
     parts += [

@@ -220,44 +220,84 @@ class GraspEngine:
         start = self._lap("approach", start)
         base[:, :3, 3] -= final[:, None] * direction
         q, stops, steps = self._close(base, q)
-        poses = link_poses(model, base, q)
         start = self._lap("closing", start)
+        closed = self._grade_closed(base, q, stops, steps, final, retreat - final)
+        for number, result in zip(rows, closed):
+            results[number] = result
+        self._lap("contacts", start)
+        return results
+
+    def replay(self, base, joints):
+        """Grade hands already closed, as :meth:`run` grades a trial once its fingers stopped:
+        the contacts of the hand at exactly this configuration, then the quality.
+
+        Parameters
+        ----------
+        base : (n, 4, 4) float
+            The hand's URDF base frame in the object frame (T_object_base, metres): an exported
+            grasp's transform, or :func:`pipeline.export.closed_poses` of trials (the pose the
+            trial closed at, bit for bit; one built from its ``base_q*`` quaternion can be a
+            rounding off, enough to change a contact at the edge of the tolerance).
+        joints : (n, J) float
+            Actuated joint values (rad or m) in ``hand_model(hand).joints`` order (the hand's
+            ``limits`` order, the trials' ``joints`` column).
+
+        Returns
+        -------
+        list of n TrialResult
+            Outcome ``force_closure``, ``no_force_closure`` or ``no_contact`` and its epsilon;
+            every finger's stop is ``contact`` (a replay cannot tell a joint limit), and
+            ``retract_m``, ``approach_m`` are NaN (the hand did not move).
+        """
+        model = self.model
+        base = np.asarray(base, np.float64).reshape(-1, 4, 4)
+        q = np.asarray(joints, np.float64).reshape(len(base), len(model.joints))
+        stops = np.zeros((len(base), model.fingers), np.int64)  # STOPS[0]: contact
+        unknown = np.full(len(base), np.nan)
+        return self._grade_closed(base, q, stops, np.zeros(len(base), np.int64), unknown, unknown)
+
+    def _grade_closed(self, base, q, stops, steps, retract, approach):
+        """The :class:`TrialResult` of each closed hand: base poses (n, 4, 4), joints (n, J),
+        finger ``stops`` (n, F) indices into :data:`STOPS`, closing ``steps`` (n,), and the
+        ``retract`` and ``approach`` (n,) metres recorded with it."""
+        model = self.model
+        poses = link_poses(model, base, q)
         # the closed hands' touching pairs, measured all at once; exact up to the tolerance is
         # all they need (a link farther than it touches nothing)
         links = np.flatnonzero(model.link_radius > 0)
-        owner = np.repeat(np.arange(len(rows)), len(links))
+        owner = np.repeat(np.arange(len(base)), len(links))
         distance, touches = measure(
             self.mesh,
             self.contact_model,
             poses,
             owner,
-            np.tile(links, len(rows)),
+            np.tile(links, len(base)),
             near=self.settings.contact_tolerance_m,
             tolerance=self.settings.contact_tolerance_m,
             features=self.mesh.contact_features,
         )
-        distance = distance.reshape(len(rows), len(links))
+        distance = distance.reshape(len(base), len(links))
         order = np.argsort(touches.pair, kind="stable")
         pair, points, normals = touches.pair[order], touches.points[order], touches.normals[order]
-        starts = np.searchsorted(pair, np.arange(len(rows) + 1) * len(links))
+        starts = np.searchsorted(pair, np.arange(len(base) + 1) * len(links))
         quaternions = Rotation.from_matrix(base[:, :3, :3]).as_quat()
-        for position, number in enumerate(rows):
-            found = slice(starts[position], starts[position + 1])
-            results[number] = self._score(
+        found = [slice(starts[position], starts[position + 1]) for position in range(len(base))]
+        return [
+            self._score(
                 distance[position],
-                pair[found] - position * len(links),
-                points[found],
-                normals[found],
+                pair[found[position]] - position * len(links),
+                points[found[position]],
+                normals[found[position]],
                 base[position],
                 quaternions[position],
                 q[position],
                 stops[position],
                 steps[position],
-                float(final[position]),
-                float(retreat[position] - final[position]),
+                float(retract[position]),
+                float(approach[position]),
             )
-        self._lap("contacts", start)
-        return results
+            for position in range(len(base))
+        ]
 
     def _retreat(self, placed, direction):
         """(n,) the smallest multiple of ``retract_step_m`` that leaves each hand clear, inf if none."""

@@ -2,7 +2,8 @@
 trials (in worker processes) and summarise them.
 
 Protocol (paper IV): per hand, ``spheres_per_object`` random spheres among those with candidates
-for that hand (seeded) and all their candidates; then as many baseline trials.
+for that hand (seeded) and all their candidates; then as many baseline trials; then, as a third
+planner, the same for the hand's ``encompassing`` candidates (:mod:`pipeline.concavity`), if any.
 
 Baseline (the peer planner of Simox's GenericGraspPlanner and OpenRAVE, facts.md 2): a random
 surface sample (area-uniform, as the samples are), approach along its inward normal, a random
@@ -10,7 +11,7 @@ roll about the approach. It runs through the same trial and quality code as the 
 
 Tables
 ------
-trials (``trials.parquet``): one row per trial; ``planner`` (mat | baseline), ``hand``,
+trials (``trials.parquet``): one row per trial; ``planner`` (mat | baseline | encompassing), ``hand``,
 ``candidate_id`` (the candidates table's id; the draw number for the baseline), ``sphere_index``
 and ``sphere_class`` (-1 and "surface" for the baseline), ``preshape``, ``grasp_*``,
 ``approach_*``, ``orient_*`` (the target), ``outcome`` (one of :data:`OUTCOMES`), ``epsilon``,
@@ -35,15 +36,21 @@ from . import pool
 from .arrays import vectors
 from .simulation import OUTCOMES, check_simulable, run_chunk, start_worker, stop_worker
 
+#: the trials' ``planner`` values: the MAT candidates, the surface-normal baseline and the
+#: candidates encompassing a concavity
+PLANNERS = ("mat", "baseline", "encompassing")
+
 # trials advanced together: the closing loop runs as many passes as its slowest trial needs, each
 # a fixed cost of numpy calls, so larger chunks share them over more trials (ARMAR-III on the
 # duck: closing 1.1 s per 512 trials in chunks of 128, 0.67 s in one of 512)
 CHUNK = 512
 
 
-def select_candidates(candidates, hand_name, spheres, seed):
-    """Rows of ``candidates`` for ``hand_name`` on ``spheres`` random spheres (all if fewer)."""
-    rows = candidates[candidates.hand == hand_name]
+def select_candidates(candidates, hand_name, spheres, seed, *, encompassing=False):
+    """Rows of ``candidates`` for ``hand_name`` on ``spheres`` random spheres (all if fewer): of
+    the ``encompassing`` candidates if true, of the others if false."""
+    around = (candidates.sphere_class == "encompassing").to_numpy()
+    rows = candidates[(candidates.hand == hand_name).to_numpy() & (around == encompassing)]
     indices = np.unique(rows.sphere_index.to_numpy())
     if len(indices) > spheres:
         indices = np.sort(np.random.default_rng(seed).choice(indices, spheres, replace=False))
@@ -163,6 +170,9 @@ def simulate(
         mat = select_candidates(candidates, hand.name, spheres_per_object, seed)
         count = len(mat) if baseline_trials < 0 else baseline_trials
         jobs += [("mat", number, mat), ("baseline", number, baseline_candidates(surface, hand, count, seed + 1000))]
+        encompassing = select_candidates(candidates, hand.name, spheres_per_object, seed, encompassing=True)
+        if len(encompassing):
+            jobs.append(("encompassing", number, encompassing))
     results = run_trials(
         surface,
         hands,
@@ -246,14 +256,14 @@ def summarise(trials):
 
 
 def summary(trials):
-    """The JSON-ready results: MAT totals at the top level, ``baseline`` beside them and
-    ``per_hand`` for both planners."""
-    mat, baseline = trials[trials.planner == "mat"], trials[trials.planner == "baseline"]
+    """The JSON-ready results: MAT totals at the top level, ``baseline`` and ``encompassing``
+    beside them and ``per_hand`` for every planner."""
+    planners = {planner: trials[trials.planner == planner] for planner in PLANNERS}
     return {
-        **summarise(mat),
-        "baseline": summarise(baseline),
+        **summarise(planners["mat"]),
+        **{planner: summarise(planners[planner]) for planner in PLANNERS[1:]},
         "per_hand": {
-            hand: {"mat": summarise(mat[mat.hand == hand]), "baseline": summarise(baseline[baseline.hand == hand])}
+            hand: {planner: summarise(rows[rows.hand == hand]) for planner, rows in planners.items()}
             for hand in sorted(trials.hand.unique())
         },
     }

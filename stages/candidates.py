@@ -1,10 +1,12 @@
-"""Stage ``candidates``: python -m stages.candidates SYMMETRY.npz HAND OUT.parquet [--timing T.json] [--log L.mcap]
+"""Stage ``candidates``: python -m stages.candidates SYMMETRY.npz CONCAVITY.npz HAND OUT.parquet [--timing T.json]
+[--log L.mcap]
 
 HAND is a built-in hand name or a hand spec file (one entry of params.yaml ``candidates.hands``).
 """
 
 from pipeline.artefacts import write_table
 from pipeline.candidates import generate_for_hands
+from pipeline.concavity import Concavities
 from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
 from pipeline.hands import get_hand
 from pipeline.symmetry import Symmetry
@@ -12,19 +14,23 @@ from pipeline.symmetry import Symmetry
 
 @one_line_errors
 def main(argv=None):
-    args = stage_args(__doc__, "symmetry", "hand", "out", argv=argv)
+    args = stage_args(__doc__, "symmetry", "concavities", "hand", "out", argv=argv)
     config = params()
     used = {
         "hand": args.hand,
         "approach_directions": config.candidates.approach_directions,
         "flipped_candidates": config.candidates.flipped_candidates,
+        "max_width_ratio": config.concavity.max_width_ratio,
     }
-    with stage_run(args, "candidates", params=used, inputs=[args.symmetry], outputs=[args.out]) as run:
+    inputs = [args.symmetry, args.concavities]
+    with stage_run(args, "candidates", params=used, inputs=inputs, outputs=[args.out]) as run:
         table = generate_for_hands(
             Symmetry.load(args.symmetry),
+            Concavities.load(args.concavities),
             [get_hand(args.hand)],
             approach_directions=used["approach_directions"],
             flipped_candidates=used["flipped_candidates"],
+            max_width_ratio=used["max_width_ratio"],
         )
         write_table(args.out, table)
         run.count(

@@ -96,6 +96,7 @@ def write_figures(data, out, config, trials, calibration):
 
     from pipeline import figures
     from pipeline.artefacts import MedialSpheres, SurfaceSamples, atomic_write, read_table
+    from pipeline.concavity import Concavities
     from pipeline.hands import get_hand
     from pipeline.symmetry import Symmetry
 
@@ -127,30 +128,36 @@ def write_figures(data, out, config, trials, calibration):
                 Symmetry.load(folder / "symmetry.npz"),
                 pd.concat(candidates, ignore_index=True),
                 title=f"{name} x{scale}",
+                concavities=Concavities.load(folder / "concavity.npz"),
             )
             captions.append(
                 (
                     f"{name} x{scale}: medial spheres by diameter (red small, blue large); reduced set, "
-                    f"e1/e2 and candidate approaches by class",
+                    f"e1/e2 and candidate approaches by class (crimson: encompassing a concavity)",
                     save(image, f"{name}-{scale}-spheres.png"),
                 )
             )
             surface = SurfaceSamples.load(folder / "surface.npz")
             for hand_name in config.candidates.hands:
                 runs = trials[
-                    (trials.object == name)
-                    & (trials.scale == float(scale))
-                    & (trials.hand == hand_name)
-                    & (trials.planner == "mat")
+                    (trials.object == name) & (trials.scale == float(scale)) & (trials.hand == hand_name)
                 ].reset_index(drop=True)
-                images = figures.grasp_images(surface, get_hand(hand_name), runs, count=config.report.example_grasps)
-                if images:
-                    captions.append(
-                        (
-                            f"{name} x{scale}, {hand_name}: the force-closure grasps with the highest epsilon",
-                            save(figures.image_grid(images, len(images)), f"{name}-{scale}-{hand_name}-grasps.png"),
-                        )
+                for planner, what, suffix in (
+                    ("mat", "the force-closure grasps", "grasps"),
+                    ("encompassing", "the force-closure grasps encompassing its concavity", "encompassing"),
+                ):
+                    images = figures.grasp_images(
+                        surface, get_hand(hand_name), runs, count=config.report.example_grasps, planner=planner
                     )
+                    if images:
+                        captions.append(
+                            (
+                                f"{name} x{scale}, {hand_name}: {what} with the highest epsilon",
+                                save(
+                                    figures.image_grid(images, len(images)), f"{name}-{scale}-{hand_name}-{suffix}.png"
+                                ),
+                            )
+                        )
     return captions
 
 

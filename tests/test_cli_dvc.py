@@ -60,6 +60,7 @@ def test_plan_writes_every_artefact_and_summary(tmp_path):
         "spheres.npz",
         "sphere_grid.npz",
         "symmetry.npz",
+        "concavity.npz",
         "candidates.parquet",
         "trials.parquet",
         "contacts.parquet",
@@ -75,6 +76,7 @@ def test_plan_writes_every_artefact_and_summary(tmp_path):
         "mat",
         "sphere_grid",
         "classify",
+        "concavity",
         "candidates",
         "simulate",
         "decompose",
@@ -212,7 +214,7 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     assert first.returncode == 0, first.stderr + first.stdout
     runs, per_scale = TINY_RUNS, len(TINY_OBJECTS) * len(TINY_SCALES)
     # (the code stages' fingerprints came with the copy: the code has not changed)
-    assert len(ran_stages(first) - {"code"}) == per_scale * 6 + len(runs) * 3 + 1
+    assert len(ran_stages(first) - {"code"}) == per_scale * 7 + len(runs) * 3 + 1
 
     # the report: a row per object x scale x hand, every trial, metrics, plots, figures
     out = tmp_path / "report"
@@ -249,11 +251,11 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     assert timings["stage"] == "simulate" and timings["process_seconds"] > timings["seconds"] > 0
     assert f"| simulate | {len(runs)} |" in text
 
-    # every stage run wrote its MCAP log; classify and simulate their recordings, read back here
+    # every stage run wrote its MCAP log; classify, concavity and simulate their recordings, read back here
     logs = tmp_path / "logs"
     assert len(list(logs.rglob("*.mcap"))) == len(ran_stages(first) - {"code"}) and len(
         list(logs.rglob("*.rrd"))
-    ) == per_scale + len(runs)
+    ) == 2 * per_scale + len(runs)
     folder = tmp_path / "data" / "capsule" / "1.0"
     spheres, symmetry = MedialSpheres.load(folder / "spheres.npz"), Symmetry.load(folder / "symmetry.npz")
     objects = logs / "capsule" / "1.0" / "object.rrd"
@@ -387,6 +389,7 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
         + len(runs) * 3
         + 1
         + per_scale * 3  # decompose: parts, timing, log
+        + per_scale * 4  # concavity: concavities, timing, log, recording
         + len(runs) * 3  # check: checks, timing, log
         + 2  # the calibration plots
     )

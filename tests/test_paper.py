@@ -26,9 +26,11 @@ def planned(name, scale=1.0):
 
 
 def grasp_points(name, hand, scale=1.0):
-    """(n, 3) grasp points of ``hand``'s candidates, divided by ``scale`` (builder frame)."""
+    """(n, 3) grasp points of ``hand``'s candidates from the paper's planner (not those that
+    encompass a concavity, its future work), divided by ``scale`` (builder frame)."""
     candidates, _ = planned(name, scale)
-    return vectors(candidates[candidates.hand == hand], "grasp") / scale
+    rows = (candidates.hand == hand) & (candidates.sphere_class != "encompassing")
+    return vectors(candidates[rows], "grasp") / scale
 
 
 def near_segment(points, start, end, radius):

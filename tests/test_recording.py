@@ -114,7 +114,18 @@ def test_mcap_counts_and_one_trial_match_the_trials_table(recorded):
     assert messages[-1][1] == {"stage": "plan", "event": "end"}
     assert {encoding for _, _, encoding in messages} == {"jsonschema"}
     assert topics.count("/timing") == len(
-        ("sample", "medial_axis", "mat", "sphere_grid", "classify", "candidates", "simulate", "decompose", "check")
+        (
+            "sample",
+            "medial_axis",
+            "mat",
+            "sphere_grid",
+            "classify",
+            "concavity",
+            "candidates",
+            "simulate",
+            "decompose",
+            "check",
+        )
     )
     logged = [payload for topic, payload, _ in messages if topic == "/trials"]
     row = trials.iloc[len(trials) // 2]

@@ -88,15 +88,15 @@ def test_no_sphere_in_the_reduced_set_gives_no_class_and_no_candidate():
     # a bumpy ball (pybullet's soccer ball) has no sphere of object angle >= 120 deg: stages go on, empty
     symmetry = classify(chain("box")["sphere_grid"], min_diameter_m=1.0)
     assert len(symmetry) == 0 and symmetry.axes.shape == (0, 9)
-    assert len(generate_for_hands(symmetry, [ARMAR3, get_hand("barrett")])) == 0
+    assert len(generate_for_hands(symmetry, None, [ARMAR3, get_hand("barrett")])) == 0
 
 
 def test_candidate_ids_are_stable_and_unique():
     symmetry = classify(chain("capsule", count=5000)["sphere_grid"])
-    table = generate_for_hands(symmetry, [ARMAR3, HANDS["barrett"]])
+    table = generate_for_hands(symmetry, None, [ARMAR3, HANDS["barrett"]])
     assert not table.duplicated(["hand", "id"]).any()
     assert ((table.id // IDS_PER_SPHERE) == table.sphere_index).all()
-    again = generate_for_hands(symmetry, [ARMAR3, HANDS["barrett"]])
+    again = generate_for_hands(symmetry, None, [ARMAR3, HANDS["barrett"]])
     assert table.equals(again)
 
 
