@@ -154,6 +154,8 @@ def log_concavities(stream, root, concavities):
             ),
             static=True,
         )
+    if not len(concavities):  # rerun refuses empty AnyValues
+        return
     stream.log(
         f"{root}/encompassing_spheres",
         rr.Ellipsoids3D(

@@ -10,6 +10,7 @@ from mcap.reader import make_reader
 from conftest import complete_params
 from rerun.chunk import RrdReader
 
+from pipeline.dag import STAGES
 from pipeline.hands import get_hand
 from pipeline.kinematics import hand_model
 from pipeline.logbook import file_digest, mcap_log, read_log
@@ -113,20 +114,7 @@ def test_mcap_counts_and_one_trial_match_the_trials_table(recorded):
     assert topics[0] == "/stage" and messages[0][1] == {"stage": "plan", "event": "start"}
     assert messages[-1][1] == {"stage": "plan", "event": "end"}
     assert {encoding for _, _, encoding in messages} == {"jsonschema"}
-    assert topics.count("/timing") == len(
-        (
-            "sample",
-            "medial_axis",
-            "mat",
-            "sphere_grid",
-            "classify",
-            "concavity",
-            "candidates",
-            "simulate",
-            "decompose",
-            "check",
-        )
-    )
+    assert topics.count("/timing") == len(STAGES)  # every stage of the chain, one process
     logged = [payload for topic, payload, _ in messages if topic == "/trials"]
     row = trials.iloc[len(trials) // 2]
     sent = logged[len(trials) // 2]
