@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .artefacts import SurfaceSamples, _Artefact, content_key
+from .artefacts import _Artefact, content_key
 from .errors import BadInputError
 from .symmetry import Symmetry
 
@@ -214,24 +214,15 @@ def concavity_parts(vertices, faces, *, min_volume, flat_mouth_deg):
 
 def _samples(vertices, faces, seed, sample, name):
     """SurfaceSamples of a closed mesh with the ``sample`` params (a dict)."""
-    from .sampling import median_spacing, sample_mesh
+    from .sampling import mesh_samples
 
-    points, normals, face_index = sample_mesh(
+    return mesh_samples(
         vertices,
         faces,
-        sample["count"],
+        count=sample["count"],
         rng=np.random.default_rng(seed),
-        sharp_angle=np.radians(sample["sharp_angle_deg"]),
-    )
-    return SurfaceSamples(
-        points=points,
-        normals=normals,
-        face_index=face_index,
-        vertices=vertices,
-        faces=faces,
-        spacing=median_spacing(points),
+        sharp_angle_deg=sample["sharp_angle_deg"],
         source=name,
-        key="",
     )
 
 

@@ -159,25 +159,24 @@ def sample_object(
         shape=shape or {},
     )  # no shape keywords: one key, whether None or {}
     loaded = load_source(source, scale=scale, shape=shape)
+    key = content_key("sample", params, source_key)
     if loaded[0] == "mesh":
         mesh = validate_mesh(loaded[1], name=source, min_extent=min_extent_m, max_extent=max_extent_m)
-        vertices, faces = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
-        points, normals, face_index = sample_mesh(
-            vertices, faces, count, rng=rng, sharp_angle=np.radians(sharp_angle_deg)
+        return mesh_samples(
+            mesh.vertices, mesh.faces, count=count, rng=rng, sharp_angle_deg=sharp_angle_deg, source=source, key=key
         )
-    else:
-        _, points, normals = loaded
-        points = as_points(f"{source}: points", points)
-        if len(points) < 100:
-            raise BadInputError(f"{source}: point cloud has {len(points)} points, need at least 100")
-        check_size(points, name=source, min_extent=min_extent_m, max_extent=max_extent_m)
-        if normals is None:
-            normals = estimate_cloud_normals(points, neighbours=cloud_normal_neighbours)
-        normals = unit_rows(as_points(f"{source}: normals", normals))
-        if not (np.linalg.norm(normals, axis=1) > 0).all():
-            raise BadInputError(f"{source}: some normals have zero length")
-        face_index = np.full(len(points), -1)
-        vertices, faces = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    _, points, normals = loaded
+    points = as_points(f"{source}: points", points)
+    if len(points) < 100:
+        raise BadInputError(f"{source}: point cloud has {len(points)} points, need at least 100")
+    check_size(points, name=source, min_extent=min_extent_m, max_extent=max_extent_m)
+    if normals is None:
+        normals = estimate_cloud_normals(points, neighbours=cloud_normal_neighbours)
+    normals = unit_rows(as_points(f"{source}: normals", normals))
+    if not (np.linalg.norm(normals, axis=1) > 0).all():
+        raise BadInputError(f"{source}: some normals have zero length")
+    face_index = np.full(len(points), -1)
+    vertices, faces = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
     return SurfaceSamples(
         points=points,
         normals=normals,
@@ -186,5 +185,22 @@ def sample_object(
         faces=faces,
         spacing=median_spacing(points),
         source=source,
-        key=content_key("sample", params, source_key),
+        key=key,
+    )
+
+
+def mesh_samples(vertices, faces, *, count, rng, sharp_angle_deg, source, key=""):
+    """:class:`SurfaceSamples` of a closed mesh, ``vertices`` (v, 3) m and ``faces`` (f, 3), that
+    is valid already (``sample_object`` checks a user's mesh first)."""
+    vertices, faces = np.asarray(vertices, np.float64), np.asarray(faces, np.int64)
+    points, normals, face_index = sample_mesh(vertices, faces, count, rng=rng, sharp_angle=np.radians(sharp_angle_deg))
+    return SurfaceSamples(
+        points=points,
+        normals=normals,
+        face_index=face_index,
+        vertices=vertices,
+        faces=faces,
+        spacing=median_spacing(points),
+        source=source,
+        key=key,
     )
