@@ -175,18 +175,8 @@ def sample_object(
     normals = unit_rows(as_points(f"{source}: normals", normals))
     if not (np.linalg.norm(normals, axis=1) > 0).all():
         raise BadInputError(f"{source}: some normals have zero length")
-    face_index = np.full(len(points), -1)
-    vertices, faces = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
-    return SurfaceSamples(
-        points=points,
-        normals=normals,
-        face_index=face_index,
-        vertices=vertices,
-        faces=faces,
-        spacing=median_spacing(points),
-        source=source,
-        key=key,
-    )
+    no_mesh = np.zeros((0, 3)), np.zeros((0, 3), np.int64)
+    return _surface(points, normals, np.full(len(points), -1), *no_mesh, source=source, key=key)
 
 
 def mesh_samples(vertices, faces, *, count, rng, sharp_angle_deg, source, key=""):
@@ -194,6 +184,10 @@ def mesh_samples(vertices, faces, *, count, rng, sharp_angle_deg, source, key=""
     is valid already (``sample_object`` checks a user's mesh first)."""
     vertices, faces = np.asarray(vertices, np.float64), np.asarray(faces, np.int64)
     points, normals, face_index = sample_mesh(vertices, faces, count, rng=rng, sharp_angle=np.radians(sharp_angle_deg))
+    return _surface(points, normals, face_index, vertices, faces, source=source, key=key)
+
+
+def _surface(points, normals, face_index, vertices, faces, *, source, key):
     return SurfaceSamples(
         points=points,
         normals=normals,
