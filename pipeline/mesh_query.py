@@ -20,9 +20,10 @@ from numba import njit
 from .tol import tol
 
 
-def _edge_points(vertices, faces, face_normals, spacing):
+def edge_points(vertices, faces, face_normals, spacing):
     """Points (m, 3) strictly inside the mesh's non-flat edges longer than ``spacing``, at most
-    ``spacing`` apart, with the mean of the two faces' normals (m, 3)."""
+    ``spacing`` apart, with the mean of the two faces' normals (m, 3), half the angle between
+    those normals (m,) rad and the edge's unit direction (m, 3): the edge's normal cone."""
     import trimesh
 
     mesh = trimesh.Trimesh(vertices, faces, process=False)
@@ -32,14 +33,132 @@ def _edge_points(vertices, faces, face_normals, spacing):
     counts = np.ceil(np.linalg.norm(end - start, axis=1) / spacing).astype(int) - 1
     owner = np.repeat(np.arange(len(start)), np.maximum(counts, 0))
     if not len(owner):
-        return np.zeros((0, 3)), np.zeros((0, 3))
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3))
     rank = np.arange(len(owner)) - np.repeat(
         np.cumsum(np.maximum(counts, 0)) - np.maximum(counts, 0), np.maximum(counts, 0)
     )
     fraction = (rank + 1) / (counts[owner] + 1)
     points = start[owner] + fraction[:, None] * (end - start)[owner]
     normals = face_normals[pairs[bent][owner, 0]] + face_normals[pairs[bent][owner, 1]]
-    return points, normals / np.linalg.norm(normals, axis=1, keepdims=True)
+    half_angles = mesh.face_adjacency_angles[bent][owner] / 2.0
+    directions = (end - start)[owner] / np.linalg.norm(end - start, axis=1)[owner, None]
+    return points, normals / np.linalg.norm(normals, axis=1, keepdims=True), half_angles, directions
+
+
+def clamp_to_cone(normals, axes, half_angles, edges):
+    """(n, 3) unit normals moved into each object feature's normal cone, the only directions a
+    contact force there can push along: ``axes`` (n, 3) unit and ``half_angles`` (n,) rad; along
+    an edge (``edges`` (n, 3) its unit direction, 0 at a vertex) the cone is the arc between its
+    two faces' normals, so a normal's component along the edge goes first. A normal inside is
+    kept; one outside goes to the rim, in its own plane with the axis. A link face's normal at a
+    near-flat edge (a 96-gon's 3.75 deg) thus becomes the surface's, not the face's own tilt."""
+    normals = np.asarray(normals, np.float64)
+    across = normals - np.einsum("ij,ij->i", normals, edges)[:, None] * edges
+    length = np.linalg.norm(across, axis=1, keepdims=True)
+    across = np.where(length > 1e-12, across / np.maximum(length, 1e-300), axes)
+    cos = np.clip(np.einsum("ij,ij->i", across, axes), -1.0, 1.0)
+    tilt = across - cos[:, None] * axes
+    tilt_length = np.linalg.norm(tilt, axis=1, keepdims=True)
+    tilt = np.where(tilt_length > 1e-12, tilt / np.maximum(tilt_length, 1e-300), 0.0)
+    rim = np.cos(half_angles)[:, None] * axes + np.sin(half_angles)[:, None] * tilt
+    return np.where((cos < np.cos(half_angles))[:, None], rim, across)
+
+
+def feature_contact_normals(normals, axes, half_angles, edges):
+    """(n, 3) contact normals at object edges and corners from the link faces' reversed
+    ``normals`` (n, 3): on the facets of a smooth surface (a cone's half angle at most
+    :attr:`pipeline.tol.Tolerances.smooth_half_rad`) the surface's, the normal clamped into the
+    cone (:func:`clamp_to_cone`), whatever the link's tilt (a fingertip's corner on a 96-gon);
+    at a sharp edge or corner (a box's) the link face's, which lies against it."""
+    smooth = np.asarray(half_angles) <= tol.smooth_half_rad
+    normals = np.array(normals, np.float64)
+    normals[smooth] = clamp_to_cone(normals[smooth], axes[smooth], half_angles[smooth], edges[smooth])
+    return normals
+
+
+def barycentric(points, corners):
+    """(n, 3) barycentric coordinates of (n, 3) ``points`` in the (n, 3, 3) triangles ``corners``
+    (of their projection on the triangle's plane)."""
+    ab, ac, ap = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0], points - corners[:, 0]
+    dot = lambda u, v: np.einsum("ij,ij->i", u, v)  # noqa: E731
+    d00, d01, d11, d20, d21 = dot(ab, ab), dot(ab, ac), dot(ac, ac), dot(ap, ab), dot(ap, ac)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = (d11 * d20 - d01 * d21) / (d00 * d11 - d01 * d01)
+        w = (d00 * d21 - d01 * d20) / (d00 * d11 - d01 * d01)
+    return np.stack([1 - v - w, v, w], axis=1)
+
+
+@dataclass(frozen=True)
+class NormalCones:
+    """The normal cones of a closed mesh's edges and corners, the directions a contact force
+    there can push along (:func:`clamp_to_cone`). ``vertex_normals`` (v, 3) area-weighted unit
+    normals and ``vertex_half`` (v,) rad: a circular cone around a vertex's faces' normals;
+    ``neighbours`` (f, 3) the face across the edge facing each corner (:func:`_neighbours`); an
+    edge's cone is the arc between its two faces' normals."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    face_normals: np.ndarray
+    vertex_normals: np.ndarray
+    vertex_half: np.ndarray
+    neighbours: np.ndarray
+
+    @classmethod
+    def of(cls, vertices, faces, face_normals):
+        accumulated = np.zeros_like(vertices)
+        crossed = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
+        for corner in range(3):
+            np.add.at(accumulated, faces[:, corner], crossed)
+        normals = accumulated / np.maximum(np.linalg.norm(accumulated, axis=1, keepdims=True), 1e-300)
+        lowest = np.ones(len(vertices))
+        np.minimum.at(lowest, faces.ravel(), np.einsum("fcj,fj->fc", normals[faces], face_normals).ravel())
+        return cls(vertices, faces, face_normals, normals, np.arccos(np.clip(lowest, -1.0, 1.0)), _neighbours(faces))
+
+    def at_border(self, triangles, weights):
+        """(axes (k, 3), half angles (k,), edges (k, 3)) of the edge or corner of ``triangles``
+        (k,) nearest the barycentric ``weights`` (k, 3): a corner where two weights are within
+        :attr:`pipeline.tol.Tolerances.border` of 0, else the edge facing the smallest one."""
+        order = np.argsort(weights, axis=1)
+        at_corner = weights[np.arange(len(triangles)), order[:, 1]] <= tol.border
+        corner = self.faces[triangles, order[:, 2]]
+        opposite = order[:, 0]
+        first, second = self.face_normals[triangles], self.face_normals[self.neighbours[triangles, opposite]]
+        middle = first + second
+        middle /= np.maximum(np.linalg.norm(middle, axis=1, keepdims=True), 1e-300)
+        half = np.arccos(np.clip(np.einsum("ij,ij->i", first, second), -1.0, 1.0)) / 2.0
+        start = self.vertices[self.faces[triangles, (opposite + 1) % 3]]
+        edge = self.vertices[self.faces[triangles, (opposite + 2) % 3]] - start
+        edge /= np.maximum(np.linalg.norm(edge, axis=1, keepdims=True), 1e-300)
+        return (
+            np.where(at_corner[:, None], self.vertex_normals[corner], middle),
+            np.where(at_corner, self.vertex_half[corner], half),
+            np.where(at_corner[:, None], 0.0, edge),
+        )
+
+    def clamp(self, normals, points, triangles):
+        """(k, 3) ``normals`` at ``points`` (k, 3) on an edge or corner of ``triangles`` (k,)
+        moved into that feature's normal cone."""
+        weights = barycentric(points, self.vertices[self.faces[triangles]])
+        return feature_contact_normals(normals, *self.at_border(triangles, weights))
+
+
+def _neighbours(faces):
+    """(f, 3) int: the face across the edge facing each corner of each face (a closed mesh's
+    edges each join two faces; an edge of one face only, or of more than two, gives the face
+    itself, a flat cone)."""
+    half = faces[:, [[1, 2], [2, 0], [0, 1]]]  # (f, 3, 2): the edge facing corner k
+    key = np.sort(half, axis=2)
+    key = key[..., 0] * (faces.max() + 1) + key[..., 1]
+    order = np.argsort(key.ravel(), kind="stable")
+    ranked = key.ravel()[order]
+    neighbours = np.repeat(np.arange(len(faces)), 3)
+    pairs = np.flatnonzero(ranked[1:] == ranked[:-1])
+    alone = np.ones(len(ranked) + 1, bool)  # a key shared by exactly two half-edges pairs them
+    alone[1:-1] = ranked[1:] != ranked[:-1]
+    single = pairs[alone[pairs] & alone[pairs + 2]]
+    neighbours[order[single]] = order[single + 1] // 3
+    neighbours[order[single + 1]] = order[single] // 3
+    return neighbours.reshape(-1, 3)
 
 
 @dataclass(frozen=True)
@@ -47,13 +166,21 @@ class Features:
     """The mesh's own convex features, which a flat link face can be nearest: every vertex, and
     points along every edge between faces that are not coplanar (an object edge under a link
     face is nearest it somewhere along the edge). ``points`` (m, 3); ``normals`` (m, 3) orient
-    them (area-weighted at vertices, the two faces' mean along edges); ``cells``: the points
+    them (area-weighted at vertices, the two faces' mean along edges) and are the axes of their
+    normal cones, ``half_angles`` (m,) rad and ``edges`` (m, 3) (0 at vertices) the rest
+    (:func:`clamp_to_cone`); ``cells``: the points
     binned in cubic cells (origin, cell size, shape, CSR starts, point indices, :func:`_cells`),
     for the link pieces' ball queries (:func:`pipeline.proximity._feature_hits`)."""
 
     points: np.ndarray
     normals: np.ndarray
+    half_angles: np.ndarray
+    edges: np.ndarray
     cells: tuple
+
+    def clamp(self, normals, index):
+        """(k, 3) ``normals`` at features ``index`` (k,) moved into their normal cones."""
+        return feature_contact_normals(normals, self.normals[index], self.half_angles[index], self.edges[index])
 
 
 FEATURE_CELL_M = 0.006  # the feature bins' side: a link cover's ball (about 1 cm) spans a few
@@ -153,16 +280,12 @@ class ObjectMesh:
         self.scene.add_triangles(
             open3d.core.Tensor(self.vertices.astype(np.float32)), open3d.core.Tensor(self.faces.astype(np.uint32))
         )
-        # vertex normals (area weighted) orient contacts found at mesh vertices
-        accumulated = np.zeros_like(self.vertices)
-        for corner in range(3):
-            np.add.at(accumulated, self.faces[:, corner], normals)
-        vertex_normals = accumulated / np.maximum(np.linalg.norm(accumulated, axis=1, keepdims=True), 1e-300)
-        self.features = self._features(vertex_normals, edge_spacing)
+        # vertex normals (area weighted) orient contacts found at mesh vertices; with the
+        # faces' neighbours they give every edge's and corner's normal cone
+        self.cones = NormalCones.of(self.vertices, self.faces, self.face_normals)
+        self.features = self._features(edge_spacing)
         self.contact_features = (
-            self.features
-            if contact_edge_spacing in (None, edge_spacing)
-            else self._features(vertex_normals, contact_edge_spacing)
+            self.features if contact_edge_spacing in (None, edge_spacing) else self._features(contact_edge_spacing)
         )
         low, high = self.vertices.min(axis=0), self.vertices.max(axis=0)
         self.box = np.array([low, high])
@@ -173,10 +296,19 @@ class ObjectMesh:
         nodes = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
         self.grid = self.signed_distance(nodes).reshape(shape)
 
-    def _features(self, vertex_normals, spacing):
-        along, along_normals = _edge_points(self.vertices, self.faces, self.face_normals, spacing)
+    def _features(self, spacing):
+        along, along_normals, along_half, along_edges = edge_points(
+            self.vertices, self.faces, self.face_normals, spacing
+        )
         points = np.concatenate([self.vertices, along])
-        return Features(points, np.concatenate([vertex_normals, along_normals]), _cells(points, FEATURE_CELL_M))
+        vertex_normals, vertex_half = self.cones.vertex_normals, self.cones.vertex_half
+        return Features(
+            points,
+            np.concatenate([vertex_normals, along_normals]),
+            np.concatenate([vertex_half, along_half]),
+            np.concatenate([np.zeros_like(vertex_normals), along_edges]),
+            _cells(points, FEATURE_CELL_M),
+        )
 
     def _tensor(self, points):
         return self._o3d.core.Tensor(np.ascontiguousarray(points, np.float32))
@@ -201,14 +333,13 @@ class ObjectMesh:
         """(n,) bool: the closest points ``found`` (:meth:`closest`) may lie on their triangle's
         edge or corner (smallest barycentric coordinate below :attr:`pipeline.tol.Tolerances.border`;
         open3d answers in float32), where the triangle's normal is not the contact's."""
-        corners = self.vertices[self.faces[found.triangles]]
-        ab, ac, ap = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0], found.points - corners[:, 0]
-        dot = lambda u, v: np.einsum("ij,ij->i", u, v)  # noqa: E731
-        d00, d01, d11, d20, d21 = dot(ab, ab), dot(ab, ac), dot(ac, ac), dot(ap, ab), dot(ap, ac)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            v = (d11 * d20 - d01 * d21) / (d00 * d11 - d01 * d01)
-            w = (d00 * d21 - d01 * d20) / (d00 * d11 - d01 * d01)
-        return ~(np.minimum(np.minimum(v, w), 1 - v - w) > tol.border)
+        weights = barycentric(found.points, self.vertices[self.faces[found.triangles]])
+        return ~(weights.min(axis=1) > tol.border)
+
+    def clamp_on_border(self, normals, found):
+        """(k, 3) ``normals`` at the closest points ``found`` (on an edge or corner of their
+        triangle, :meth:`on_border`) moved into that edge's or corner's normal cone."""
+        return self.cones.clamp(normals, found.points, found.triangles)
 
     def distance(self, points):
         """(n,) exact unsigned distances (m) of (n, 3) points to the mesh."""

@@ -30,7 +30,8 @@ from .tol import tol
 class Touches:
     """The pairs of a measure within ``tolerance``: ``pair`` (t,) index of the (trial, link) pair,
     ``points`` (t, 3) on the object, ``normals`` (t, 3) the object's outward normal there (the
-    touched triangle's, or minus the link face's for a mesh vertex touching the link)."""
+    touched triangle's; at an object edge or corner minus the link face's, moved into the
+    feature's normal cone on a smooth surface: :func:`pipeline.mesh_query.feature_contact_normals`)."""
 
     pair: np.ndarray
     points: np.ndarray
@@ -92,10 +93,11 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
             hit = found.distances <= tolerance
             normals = found.normals[hit]
             # on an object edge or corner the contact is the object's feature against the link's
-            # face (the mesh-to-link side's normal), not against one of the faces meeting there
+            # face (the mesh-to-link side's normal), not against one of the faces meeting there;
+            # on a smooth surface's facet seams, the surface's normal
             border = mesh.on_border(found.at(hit))
             on_edge = np.flatnonzero(exact)[hit][border]
-            normals[border] = _link_face_normal(
+            link_face = _link_face_normal(
                 model,
                 flat,
                 slot[point_pair[on_edge]],
@@ -103,6 +105,7 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
                 world[on_edge] - found.points[hit][border],
                 normals[border],
             )
+            normals[border] = mesh.clamp_on_border(link_face, found.at(hit).at(border))
             touches[0].append(point_pair[exact][hit])
             touches[1].append(found.points[hit])
             touches[2].append(normals)
@@ -117,7 +120,7 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
             hit = gap <= tolerance
             touches[0].append(pair[hit])
             touches[1].append(features.points[vertex[hit]])
-            touches[2].append(-normal[hit])
+            touches[2].append(features.clamp(-normal[hit], vertex[hit]))
     if tolerance is None:
         return distance
     joined = [

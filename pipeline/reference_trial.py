@@ -30,6 +30,7 @@ from scipy.spatial.transform import Rotation
 
 from .bullet import BulletClient, load_hand, pybullet
 from .kinematics import base_poses, hand_model, link_poses
+from .mesh_query import NormalCones, edge_points, feature_contact_normals
 from .simulation import TrialResult, grade, mass_properties
 from .tol import tol
 
@@ -184,27 +185,19 @@ class ReferenceEngine(BulletClient):
         """The object's triangles, vertices and features (vertices, with area-weighted normals,
         and points along creased edges at :data:`REFERENCE_SPACING_M`, with their two faces' mean
         normal) in k-d trees, for :meth:`_touching_pairs`."""
-        import trimesh
-
         corners = vertices[faces]
         crossed = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
         self.face_normals = crossed / np.linalg.norm(crossed, axis=1, keepdims=True)
         self.longest_edge = float(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).max())
         self.vertex_tree, self.centroid_tree = cKDTree(vertices), cKDTree(corners.mean(axis=1))
-        vertex_normals = np.zeros_like(vertices)
-        for corner in range(3):
-            np.add.at(vertex_normals, faces[:, corner], crossed)
-        mesh = trimesh.Trimesh(vertices, faces, process=False)
-        creased = mesh.face_adjacency_angles > 1e-6
-        edges, pairs = mesh.face_adjacency_edges[creased], mesh.face_adjacency[creased]
-        counts = np.ceil(np.linalg.norm(vertices[edges[:, 1]] - vertices[edges[:, 0]], axis=1) / REFERENCE_SPACING_M)
-        owner = np.repeat(np.arange(len(edges)), np.maximum(counts.astype(int) - 1, 0))
-        fraction = (np.arange(len(owner)) - np.searchsorted(owner, owner) + 1) / counts[owner]
-        along = vertices[edges[owner, 0]] + fraction[:, None] * (vertices[edges[owner, 1]] - vertices[edges[owner, 0]])
-        along_normals = self.face_normals[pairs[owner, 0]] + self.face_normals[pairs[owner, 1]]
+        self.cones = NormalCones.of(vertices, faces, self.face_normals)
+        along, along_normals, along_half, along_edges = edge_points(
+            vertices, faces, self.face_normals, REFERENCE_SPACING_M
+        )
         self.features = np.concatenate([vertices, along])
-        self.feature_normals = np.concatenate([vertex_normals, along_normals])
-        self.feature_normals /= np.linalg.norm(self.feature_normals, axis=1, keepdims=True)
+        self.feature_normals = np.concatenate([self.cones.vertex_normals, along_normals])
+        self.feature_half = np.concatenate([self.cones.vertex_half, along_half])
+        self.feature_edges = np.concatenate([np.zeros_like(vertices), along_edges])
         self.feature_tree = cKDTree(self.features)
 
     def _pose(self, base, q):
@@ -289,6 +282,11 @@ class ReferenceEngine(BulletClient):
             best = score.argmax(axis=1)
             found = np.isfinite(score[np.arange(len(best)), best])
             normal[np.flatnonzero(on_edge)[found]] = -probe.planes[best[found], :3] @ rotation.T
+            # as far as the object feature's normal cone allows
+            edge_rows = np.flatnonzero(on_edge)
+            normal[edge_rows] = self.cones.clamp(
+                normal[edge_rows], closest[touching][edge_rows], triangle[touching][edge_rows]
+            )
             normals.append(normal)
             centre = probe.triangles.reshape(-1, 3).mean(axis=0)
             reach = np.linalg.norm(probe.triangles.reshape(-1, 3) - centre, axis=1).max() + tolerance
@@ -298,7 +296,15 @@ class ReferenceEngine(BulletClient):
             touching = gap <= tolerance
             gaps.append(np.maximum(gap[touching], 0.0))
             points.append(self.features[nearby[touching]])
-            normals.append(-probe.planes[face[touching], :3] @ rotation.T)
+            index = nearby[touching]
+            normals.append(
+                feature_contact_normals(
+                    -probe.planes[face[touching], :3] @ rotation.T,
+                    self.feature_normals[index],
+                    self.feature_half[index],
+                    self.feature_edges[index],
+                )
+            )
         return np.concatenate(gaps), np.concatenate(points), np.concatenate(normals)
 
     def _closest_on_object(self, points, reach):

@@ -59,6 +59,10 @@ class Tolerances:
     :mod:`pipeline.objects`)."""
     flat_volume: float = 1e-12
     """A mesh whose volume is below this x its bounding-box diagonal cubed is a flat sheet (objects)."""
+    smooth_half_rad: float = 0.2617993877991494
+    """15 deg: an object edge or corner whose normal cone is at most this wide each way is a facet
+    seam of a smooth surface (faces within 30 deg, ``sample.sharp_angle_deg``'s default), where a
+    contact pushes along the surface's normal (:func:`pipeline.mesh_query.feature_contact_normals`)."""
     crease_rad: float = 1e-6
     """Mesh edges whose faces meet at a larger angle are measured along their length
     (:mod:`pipeline.mesh_query`)."""

@@ -77,6 +77,13 @@ def test_mug_encompassing_candidates_surround_the_body_and_mostly_close():
     radius = np.hypot(touching.x, touching.y)
     body = touching.z.between(0.0, HEIGHT) & (touching.x < BODY + 0.002)
     assert np.allclose(radius[body & (touching.link > 0)], BODY, atol=0.003)
+    # and push along the body's own normal: the 96-gon's facets are within 1.875 deg of radial,
+    # and an edge's contact normal stays in its cone (not a fingertip's tilt: a fabricated pinch)
+    wall = body & (touching.link > 0) & np.isclose(radius, BODY, atol=0.0005) & touching.z.between(0.01, HEIGHT - 0.01)
+    outward = np.c_[touching.x, touching.y][wall] / radius[wall].to_numpy()[:, None]
+    across = np.c_[touching.nx, touching.ny][wall]
+    cosine = (outward * across).sum(axis=1) / np.linalg.norm(across, axis=1)
+    assert wall.sum() > 10 and np.degrees(np.arccos(np.clip(cosine, -1, 1))).max() < 2.0
 
 
 def classify_plain(surface):

@@ -107,3 +107,50 @@ def test_a_scattered_face_contact_is_its_convex_hull(rng):
         points = 0.05 * normal + flat[:, :1] * first + flat[:, 1:] * second
         corners = region_corners(points, np.tile(normal, (len(points), 1)))
         assert corners.tolist() == sorted(ConvexHull(flat).vertices.tolist())
+
+
+def unit(vector):
+    vector = np.asarray(vector, float)
+    return vector / np.linalg.norm(vector)
+
+
+def test_a_normal_inside_its_features_cone_is_kept_and_one_outside_goes_to_the_rim():
+    """clamp_to_cone, known answers: a vertex's cone of 45 deg around +z; an edge along +z whose
+    faces' normals are +-1.875 deg about +x (a 96-gon's)."""
+    from pipeline.mesh_query import clamp_to_cone
+
+    half = np.radians(45.0)
+    inside, outside = unit([np.sin(np.radians(30)), 0, np.cos(np.radians(30))]), unit([0, np.sin(1.0), np.cos(1.0)])
+    kept, moved = clamp_to_cone(np.array([inside, outside]), np.tile(UP, (2, 1)), np.full(2, half), np.zeros((2, 3)))
+    assert np.allclose(kept, inside)
+    assert np.allclose(moved, [0.0, np.sin(half), np.cos(half)])  # 45 deg from +z, toward the normal
+    # a link face tilted 35 deg about the edge and 20 deg along it: the arc's end nearest it
+    facet = np.radians(1.875)
+    tilted = unit([np.cos(np.radians(35)), np.sin(np.radians(35)), np.tan(np.radians(20))])
+    (clamped,) = clamp_to_cone(tilted[None], np.array([[1.0, 0, 0]]), np.array([facet]), np.array([UP]))
+    assert np.allclose(clamped, [np.cos(facet), np.sin(facet), 0.0])
+
+
+def test_normal_cones_of_a_96_gon_cylinder():
+    """A cylinder of 96 sides: each side edge's cone is half its 3.75 deg; the faces' neighbours
+    are trimesh's face adjacency; a point on a side edge clamps to within 1.875 deg of radial."""
+    import trimesh
+
+    from pipeline.mesh_query import ObjectMesh
+
+    cylinder = trimesh.creation.cylinder(radius=0.05, height=0.1, sections=96)
+    mesh = ObjectMesh(cylinder.vertices, cylinder.faces)
+    pairs = {tuple(sorted((face, other))) for face, row in enumerate(mesh.cones.neighbours) for other in row}
+    assert pairs == set(map(tuple, np.sort(cylinder.face_adjacency, axis=1)))
+    side = np.abs(mesh.features.edges[:, 2]) > 0.99  # the vertical edges' points
+    assert side.any() and np.allclose(np.degrees(mesh.features.half_angles[side]), 1.875, atol=1e-6)
+    # a link face normal 35 deg off the radial at the middle of a side edge
+    rim = cylinder.vertices[np.hypot(cylinder.vertices[:, 0], cylinder.vertices[:, 1]) > 0.04]
+    corner = rim[np.argmin(np.abs(rim[:, 1] - 0.01))]
+    point = np.array([corner[0], corner[1], 0.0])
+    found = mesh.closest(point[None] * 1.01)
+    assert mesh.on_border(found).all()
+    link_face = unit([np.cos(np.radians(35)), np.sin(np.radians(35)), 0.0])[None]
+    (normal,) = mesh.clamp_on_border(link_face, found)
+    radial = unit([point[0], point[1], 0.0])
+    assert np.degrees(np.arccos(np.clip(normal @ radial, -1, 1))) <= 1.875 + 1e-6
