@@ -7,7 +7,11 @@
    face's normal reversed: the object's feature against the link's face), or a mesh feature
    point (a vertex, a point on a non-flat edge) near the link with the link face's normal
    reversed (off a link edge or corner, the link face there that best faces the object's own
-   normal). So a link the closing rule stopped always has contacts.
+   normal). On a smooth surface's facet seams (faces within 30 deg) that normal is clamped into
+   the seam's normal cone, the surface's own normal: a fingertip's tilt on a 96-gon mug made
+   opposite normals and a force closure the real surface does not give
+   (:func:`pipeline.mesh_query.feature_contact_normals`). So a link the closing rule stopped
+   always has contacts.
 2. Per link, candidates whose normals lie within ``coplanar_deg`` of a seed normal form one
    contact region, seeds taken from the most touched normal down. Regions are not chained
    from neighbour to neighbour: a finger along a round chair leg touches facets 4 deg apart,

@@ -34,10 +34,12 @@ class Tolerances:
     """A closest point whose smallest barycentric coordinate in its triangle is below this may
     lie on the triangle's edge or corner, where another triangle ties with it
     (:meth:`pipeline.mesh_query.ObjectMesh.facing`; open3d answers in float32)."""
-    sliding: float = 1e-6
+    sliding: float = 0.035
     """A touching point whose closing velocity points into the object by less than this
-    fraction of its speed slides past it and does not stop its link: a prismatic jaw's side
-    face runs exactly along its motion, where the sign of the tiny product was rounding
+    fraction of its speed (sin 2 deg) slides past it and does not stop its link: a prismatic
+    jaw's side face runs exactly along its motion, and a pad passing a smooth surface's facet
+    seam meets it at the surface's own normal (:func:`pipeline.mesh_query.feature_contact_normals`),
+    where a product of 1e-6 was the engine's or the reference's sampling, not a press
     (:mod:`pipeline.simulation`, :mod:`pipeline.reference_trial`)."""
     overlap_m: float = 1e-6
     """A mesh vertex deeper than this inside a link is a collision (proximity)."""

@@ -344,8 +344,11 @@ def test_outcomes_agree_with_the_pybullet_reference_on_the_duck():
     by brute force). Measured when written (session 13): jaw 20/20, Barrett 19/20 (session 12:
     15 and 17, the floor then 32). The jaw's five differences were the reference's pressing
     test: its numerical derivative of pybullet's float32 link states, 2e-4 of the speed off,
-    pressed a pad sliding past a vertex beside its side face. 37 of the 40 is the floor (room
-    for another platform's rounding in where a finger stops)."""
+    pressed a pad sliding past a vertex beside its side face. Session 16 (contact normals on
+    smooth facet seams clamped into their cones): jaw 20/20, Barrett 18/20, once a press needs
+    more than 2 deg into the surface (with 1e-6, 17 and 18: a pad 89.5 deg to a seam's normal
+    pressed in one and not the other). 37 of the 40 is the floor (room for another platform's
+    rounding in where a finger stops)."""
     from pipeline import sphere_grid
     from pipeline.arrays import vectors
     from pipeline.candidates import generate
