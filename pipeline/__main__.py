@@ -152,6 +152,13 @@ def main(argv=None):
         help="grasp trials per hand in the trial table (default: 512, one chunk of the engine's batch)",
     )
     bench.add_argument(
+        "--reference-trials",
+        type=int,
+        default=60,
+        help="of those, how many also run through the pybullet reference to compare outcomes "
+        "(default: %(default)s; about 0.1-1 trial/s; 0: none)",
+    )
+    bench.add_argument(
         "--only",
         choices=("medial", "symmetry", "trials", "checks", "recording", "batch"),
         default=None,
@@ -308,6 +315,7 @@ def main(argv=None):
         repeats=args.repeats,
         json_path=args.json,
         trials=args.trials,
+        reference_trials=args.reference_trials,
         only=args.only,
     )
 

@@ -62,7 +62,9 @@ def _measure(surface, method, repeats):
     return float(np.median(times)), peak, spheres
 
 
-def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, trials=512, only=None, out=print):
+def run_bench(
+    *, sizes=(20000, 100000, 200000), repeats=3, json_path=None, trials=512, reference_trials=60, only=None, out=print
+):
     """Print (and optionally save) the benchmark tables (``only``: one of medial, symmetry,
     trials, checks, recording, batch); returns {table: rows}."""
     tables = {}
@@ -73,7 +75,7 @@ def run_bench(*, sizes=(20000, 100000, 200000), repeats=3, json_path=None, trial
         tables["symmetry"] = run_symmetry_bench(repeats=repeats, out=out)
         out("")
     if only in (None, "trials"):
-        tables["trials"] = run_trial_bench(trials=trials, out=out)
+        tables["trials"] = run_trial_bench(trials=trials, reference_trials=reference_trials, out=out)
         out("")
     if only in (None, "checks"):
         tables["checks"] = run_check_bench(out=out)
@@ -209,6 +211,15 @@ def _warm_engine(surface, symmetry, hand, trials, settings):
     return table, targets, engine
 
 
+def _trial_trace(result):
+    """One trial in a line, to trace a disagreement: outcome, epsilon, where the hand closed,
+    the finger stops and the links that touched."""
+    return (
+        f"{result.outcome} eps {result.epsilon:.3f} retract {result.retract_m * 1000:.1f} mm "
+        f"stops {','.join(result.finger_stops)} touched {','.join(sorted(result.touched)) or '-'}"
+    )
+
+
 def run_trial_bench(*, trials=512, reference_trials=60, out=print):
     """Grasp trials per second per hand on a ~17k-triangle duck, the engine
     (:mod:`pipeline.simulation`, batched) beside the one it replaced (:mod:`pipeline.legacy_trial`,
@@ -273,6 +284,8 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
         )
         if old:
             out("    new | old: " + ", ".join(f"{a} | {b}: {n}" for (a, b), n in sorted(confusion.items())))
+        if not reference_trials:
+            continue
         reference = ReferenceEngine(surface, hand, **settings)
         start = time.perf_counter()
         checked = reference.run(*(values[:reference_trials] for values in targets))
@@ -289,6 +302,9 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
             f"    new | reference (pybullet, {reference_rate:.1f} trials/s): agree {agree}/{len(checked)}; "
             + ", ".join(f"{a} | {b}: {n}" for (a, b), n in sorted(against.items()))
         )
+        for number, (result, other) in enumerate(zip(new, checked)):
+            if result.outcome != other.outcome:
+                out(f"      candidate {number}: " + " | ".join(map(_trial_trace, (result, other))))
     out("paper: 0.5 s per trial (one core, 2011); target >= 300 trials/s per core")
     return rows
 

@@ -9,6 +9,11 @@ get candidates. Per class:
   orthogonal to e1, starting at e2; P_o = e1.
 - ``rim``: P_o = e1; P_d = e2 or -e2, whichever moves the hand from outside the rim toward
   the neighbourhood's centre of gravity (paper: -e2 when the angle to it is >= 90 degrees).
+  With ``centre_rims`` P_g moves across the rim, along P_d x P_o, so that the open hand's
+  finger gap is centred on all the object's material between its fingers, where that fits
+  the gap (:func:`centre_on_material`): a thin wall round a cavity narrower than the hand (a
+  cup's) is then grasped with the cavity's far wall inside the hand, not with fingers landing
+  on it. A plate's edge or a solid's rim has its material centred on the sphere already.
 - ``interior``: none.
 - ``isolated`` (a spherical part): the six directions +-x, +-y, +-z of the object frame,
   with P_o = z for the four horizontal approaches and P_o = x for the two vertical ones.
@@ -26,7 +31,9 @@ Candidate ids are stable: ``sphere_index * 64 + k``, k the candidate's rank for 
 
 import numpy as np
 import pandas as pd
+from scipy.spatial import cKDTree
 
+from .kinematics import open_gap
 from .symmetry import AXIS, CLASSES, ISOLATED, PAIR, RIM
 
 #: ``sphere_class`` of the candidates: the classes of :mod:`pipeline.symmetry` and ``encompassing``
@@ -54,7 +61,79 @@ COLUMNS = [
 ]
 
 
-def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, preshape=None, label=None):
+CENTRING_CHUNK = 64  # rim candidates whose neighbourhoods are gathered at once (memory)
+RIM_CLEARANCE_M = 0.002
+"""Room (m) left between the material and each side of the finger gap for a rim's P_g to be
+moved (the trial's contact tolerance: closer, a finger would start touching)."""
+
+
+def centre_on_material(grasp, approach, orient, radius, centres, radii, gap):
+    """Grasp points moved across P_d so the open hand's finger gap is centred on the material
+    between its fingers, where that fits in the gap.
+
+    Parameters
+    ----------
+    grasp, approach, orient : (n, 3) float
+        P_g (m), P_d and P_o (unit) of the candidates.
+    radius : (n,) float
+        Their spheres' radii (m): material from this far behind P_g along P_d on counts.
+    centres, radii : (m, 3), (m,) float
+        The object's medial spheres (its material), m.
+    gap : tuple
+        :func:`pipeline.kinematics.open_gap` of the hand's preshape.
+
+    Returns
+    -------
+    (n, 3) float: P_g moved along u = P_d x P_o by the offset that puts the middle of the
+    material's extent along u (spheres whose centres lie between the fingers: within the
+    fingers' half width along P_o, from ``radius`` behind P_g to the fingers' reach along P_d,
+    within the gap's width along u) on the middle of the gap; unmoved where that extent is
+    wider than the gap less :data:`RIM_CLEARANCE_M` each side.
+    """
+    lo, hi, half_width, reach = gap
+    width = hi - lo
+    across = np.cross(approach, orient)
+    across /= np.linalg.norm(across, axis=1, keepdims=True)
+    moved = grasp.copy()
+    # a sphere wider than the gap cannot fit in it with its neighbours
+    candidates = np.flatnonzero(2 * radius <= width - 2 * RIM_CLEARANCE_M)
+    tree = cKDTree(centres)
+    for first in range(0, len(candidates), CENTRING_CHUNK):
+        rows = candidates[first : first + CENTRING_CHUNK]
+        # the ball round the box between the fingers: along P_o, P_d, u half extents
+        # half_width, (reach + radius) / 2, width, centred ahead of P_g
+        middle = grasp[rows] + approach[rows] * ((reach - radius[rows]) / 2)[:, None]
+        ball = np.sqrt(half_width**2 + ((reach + radius[rows]) / 2) ** 2 + width**2)
+        found = tree.query_ball_point(middle, ball, return_sorted=False)
+        owner = np.repeat(np.arange(len(rows)), [len(near) for near in found])
+        index = np.concatenate([np.asarray(near, np.int64) for near in found])
+        offset = centres[index] - grasp[rows][owner]
+        along, ahead, side = (np.einsum("ij,ij->i", offset, axis[rows][owner]) for axis in (orient, approach, across))
+        between = (
+            (np.abs(along) <= half_width)
+            & (ahead >= -radius[rows][owner])
+            & (ahead <= reach)
+            & (np.abs(side) <= width)
+        )
+        low, high = np.full(len(rows), np.inf), np.full(len(rows), -np.inf)
+        np.minimum.at(low, owner[between], side[between] - radii[index[between]])
+        np.maximum.at(high, owner[between], side[between] + radii[index[between]])
+        fits = high - low <= width - 2 * RIM_CLEARANCE_M
+        shift = np.where(fits, (low + high - lo - hi) / 2, 0.0)
+        moved[rows] += shift[:, None] * across[rows]
+    return moved
+
+
+def generate(
+    symmetry,
+    hand,
+    *,
+    approach_directions=4,
+    flipped_candidates=True,
+    centre_rims=True,
+    preshape=None,
+    label=None,
+):
     """Candidate grasps for one hand, as a table.
 
     Parameters
@@ -64,6 +143,9 @@ def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, 
     approach_directions : int
         Directions around an axis.
     flipped_candidates : bool
+    centre_rims : bool
+        Move rim candidates' P_g to centre the open hand on the material between its fingers
+        (:func:`centre_on_material`); false: P_g at the sphere centre, as the paper.
     preshape : str, optional
         Defaults to the hand's first preshape.
     label : str, optional
@@ -115,6 +197,15 @@ def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, 
     rank = np.arange(len(row)) - start
     sphere_index = np.asarray(symmetry.sphere_index)[row]
     centers = np.asarray(symmetry.centers)[row]
+    preshape = preshape or hand.default_preshape
+    moved = class_id[row] == RIM
+    gap = open_gap(hand, preshape) if centre_rims and moved.any() else None
+    if gap is not None:
+        radii = np.asarray(symmetry.radii, float)
+        centers = centers.copy()
+        centers[moved] = centre_on_material(
+            centers[moved], approach[moved], orient[moved], radii[row[moved]], np.asarray(symmetry.centers), radii, gap
+        )
     table = pd.DataFrame(
         {
             "hand": hand.name,
@@ -125,7 +216,7 @@ def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, 
                 categories=CANDIDATE_CLASSES,
             ),
             "diameter_m": 2.0 * np.asarray(symmetry.radii)[row],
-            "preshape": preshape or hand.default_preshape,
+            "preshape": preshape,
             "grasp_x": centers[:, 0],
             "grasp_y": centers[:, 1],
             "grasp_z": centers[:, 2],
@@ -141,7 +232,14 @@ def generate(symmetry, hand, *, approach_directions=4, flipped_candidates=True, 
 
 
 def generate_for_hands(
-    symmetry, concavities, hands, *, approach_directions=4, flipped_candidates=True, max_width_ratio=1.0
+    symmetry,
+    concavities,
+    hands,
+    *,
+    approach_directions=4,
+    flipped_candidates=True,
+    centre_rims=True,
+    max_width_ratio=1.0,
 ):
     """The ``candidates`` stage as a pure function: one table, a block of rows per hand, its
     ``encompassing`` candidates after the others.
@@ -152,6 +250,8 @@ def generate_for_hands(
     concavities : Concavities or None
         The encompassing spheres (stage ``concavity``); None: none.
     hands : list of Hand
+    approach_directions, flipped_candidates, centre_rims
+        See :func:`generate`.
     max_width_ratio : float
         See :meth:`pipeline.concavity.Concavities.spheres_for`.
 
@@ -162,8 +262,9 @@ def generate_for_hands(
     options = dict(approach_directions=approach_directions, flipped_candidates=flipped_candidates)
     tables = []
     for hand in hands:
-        tables.append(generate(symmetry, hand, **options))
+        tables.append(generate(symmetry, hand, **options, centre_rims=centre_rims))
         if concavities is not None and len(concavities):
+            # the encompassing spheres are a part of the filled object, not all its material
             spheres = concavities.spheres_for(hand.max_graspable_diameter, max_width_ratio)
-            tables.append(generate(spheres, hand, **options, label="encompassing"))
+            tables.append(generate(spheres, hand, **options, centre_rims=False, label="encompassing"))
     return pd.concat(tables, ignore_index=True)

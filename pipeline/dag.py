@@ -109,7 +109,12 @@ STAGES = (
         "candidates",
         ("symmetry", "concavities"),
         ("candidates",),
-        ("candidates.approach_directions", "candidates.flipped_candidates", "concavity.max_width_ratio"),
+        (
+            "candidates.approach_directions",
+            "candidates.flipped_candidates",
+            "candidates.centre_rims",
+            "concavity.max_width_ratio",
+        ),
         "pipeline.candidates:generate_for_hands",
         args=("hand",),
         per_hand=True,

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 from scipy.spatial import ConvexHull
+from scipy.spatial.transform import Rotation
 
 from .errors import BadParamsError
 from .tol import tol
@@ -501,6 +502,55 @@ def base_poses(hand, grasp, approach, orient):
     poses[:, :3, :3] = rotation
     poses[:, :3, 3] = grasp - rotation @ np.asarray(hand.grasp_centre, float)
     return poses
+
+
+def hand_boxes(model, base_positions, base_orientations, joints):
+    """Every collision shape's drawing box of the hands ``model`` with their URDF bases at
+    ``base_positions`` (n, 3) m and ``base_orientations`` (n, 4) quaternions x y z w, and
+    ``joints`` (n, J) in ``model.joints`` order: world centres (n, S, 3), rotations
+    (n, S, 3, 3) and half extents (S, 3)."""
+    base = np.tile(np.eye(4), (len(base_positions), 1, 1))
+    if len(base):
+        base[:, :3, :3] = Rotation.from_quat(base_orientations).as_matrix()
+    base[:, :3, 3] = base_positions
+    poses = link_poses(model, base, np.asarray(joints, np.float64).reshape(len(base), len(model.joints)))
+    poses = poses[:, model.box_link]
+    centres = np.einsum("nsij,sj->nsi", poses[..., :3, :3], model.box_centre) + poses[..., :3, 3]
+    return centres, poses[..., :3, :3] @ model.box_rotation, model.box_half
+
+
+def open_gap(hand, preshape=None):
+    """The open hand's finger gap around its grasp centre, from its links' drawing boxes in
+    ``preshape`` (None: the default), in the palm frame's axes.
+
+    Returns
+    -------
+    (lo, hi, half_width, reach) in metres, or None where the fingers are not on both sides of
+    the grasp centre: along the closing axis approach x wrap, the inner faces of the finger
+    links on either side (lo < hi, from the grasp centre); the finger links' half extent along
+    the wrap axis; how far past the grasp centre they reach along the approach. The gap is
+    measured between the finger links level with the grasp centre along the approach, where
+    there are such links on both sides.
+    """
+    model = hand_model(hand)
+    joints = np.array([[hand.preshape(preshape)[joint] for joint in model.joints]])
+    centres, rotations, half = hand_boxes(model, np.zeros((1, 3)), np.array([[0.0, 0.0, 0.0, 1.0]]), joints)
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    corners = centres[0][:, None, :] + np.einsum("sij,scj->sci", rotations[0], signs[None] * half[:, None, :])
+    finger = model.box_link != 0  # link 0 is the palm
+    relative = corners[finger] - np.asarray(hand.grasp_centre, float)
+    approach, wrap = np.asarray(hand.approach, float), np.asarray(hand.wrap, float)
+    across, along, ahead = relative @ np.cross(approach, wrap), relative @ wrap, relative @ approach
+    side = np.sign(across.mean(axis=1))
+    # the gap where the object is held: between the finger links level with the grasp centre
+    # (a thumb's base nearer the palm's middle does not narrow it), or any where none is
+    level = (ahead.min(axis=1) <= 0) & (ahead.max(axis=1) >= 0)
+    if (level & (side > 0)).any() and (level & (side < 0)).any():
+        side = np.where(level, side, 0.0)
+    if not ((side > 0).any() and (side < 0).any()):
+        return None
+    lo, hi = across[side < 0].max(), across[side > 0].min()
+    return float(lo), float(hi), float(np.abs(along).max()), float(ahead.max())
 
 
 def read_robot(hand):

@@ -186,6 +186,10 @@ class CandidatesParams:
     """Approach directions around a symmetry axis (Simox default 4)."""
     flipped_candidates: bool = True
     """Also emit every candidate with P_o = -P_o (Simox default)."""
+    centre_rims: bool = True
+    """Move a rim candidate's P_g across the rim so the open hand's finger gap is centred on
+    the object's material between its fingers, where it fits (a thin wall round a cavity
+    narrower than the hand); false: P_g at the sphere centre, as the paper."""
 
     def __post_init__(self):
         from .hands import HANDS, is_spec_path
@@ -197,6 +201,8 @@ class CandidatesParams:
             f"must list built-in hands ({', '.join(HANDS)}) or hand spec files, got {self.hands!r}",
         )
         _require(self.approach_directions >= 1, "candidates", "approach_directions", "must be >= 1")
+        for key in ("flipped_candidates", "centre_rims"):
+            _require(isinstance(getattr(self, key), bool), "candidates", key, "must be true or false")
 
 
 @dataclass(frozen=True)
@@ -220,7 +226,12 @@ class SimulateParams:
     retract_max_m: float = 0.2
     """A candidate whose hand is not clear after this retreat is a ``collision``."""
     approach_step_m: float = 0.001
-    """Largest step of the way back to contact after the retreat; at most the contact tolerance."""
+    """Largest step of the approach to contact after the retreat; at most the contact tolerance."""
+    approach_max_m: float = -1.0
+    """How far past where it was placed the hand may come on along P_d looking for contact;
+    a hand that travels it all without a link within the tolerance missed the object
+    (``no_contact``, fingers not closed). -1 = the hand's ``max_graspable_diameter``; 0 = never
+    past the placement."""
     near_m: float = 0.004
     """Distances up to this are exact mesh queries; beyond, a signed distance grid's bound sets
     the (conservative) step. At least the contact tolerance."""
@@ -243,9 +254,9 @@ class SimulateParams:
     grid_cells: int = 40
     """Nodes of the object's signed distance grid along its longest side (steps only)."""
     approach_to_contact: bool = True
-    """After the retreat, come back until a link is within the contact tolerance (OpenRAVE's
-    approach to contact); false: close where the retreat left the hand clear, as the paper's
-    Simox port did (``approach_m`` 0)."""
+    """After the retreat, move the hand along P_d until a link is within the contact tolerance,
+    past the placement too (OpenRAVE's and GraspIt's approach to contact); false: close where
+    the retreat left the hand clear, as the paper's Simox port did (``approach_m`` 0)."""
     palm_contacts: bool = True
     """Grade the palm's (the base link's) contacts with the fingers'; false: drop them before
     the quality, so a hand touching with its palm alone is ``no_contact``."""
@@ -276,6 +287,12 @@ class SimulateParams:
             "must be at most contact_tolerance_m (a step must not jump past a touch)",
         )
         _require(self.near_m >= self.contact_tolerance_m, "simulate", "near_m", "must be at least contact_tolerance_m")
+        _require(
+            self.approach_max_m == -1 or self.approach_max_m >= 0,
+            "simulate",
+            "approach_max_m",
+            "must be -1 (the hand's max_graspable_diameter) or >= 0",
+        )
         _require(
             self.contact_point_spacing_m <= self.link_point_spacing_m,
             "simulate",

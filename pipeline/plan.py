@@ -86,6 +86,7 @@ def run_chain(
             hands=hand_specs,
             approach_directions=params.candidates.approach_directions,
             flipped_candidates=params.candidates.flipped_candidates,
+            centre_rims=params.candidates.centre_rims,
             max_width_ratio=params.concavity.max_width_ratio,
         ),
         "simulate": dict(

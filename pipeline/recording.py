@@ -204,8 +204,8 @@ def log_trials(stream, root, surface, hand, trials, contacts, *, settings=None):
     from scipy.spatial.transform import Rotation
 
     from .quality import friction_cone
-    from .kinematics import hand_model
-    from .simulation import OUTCOMES, hand_boxes
+    from .kinematics import hand_boxes, hand_model
+    from .simulation import OUTCOMES
 
     settings = settings or {}
     count, path = len(trials), f"{root}/trials/{hand.name}"

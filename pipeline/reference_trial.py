@@ -404,20 +404,24 @@ class ReferenceEngine(BulletClient):
         if retreat is None:
             return TrialResult("collision")
         geometric = [link for link in range(len(model.links)) if model.link_radius[link] > 0]
+        farthest = -(self.hand.max_graspable_diameter if settings.approach_max_m == -1 else settings.approach_max_m)
         offset = retreat
-        while offset > 0:  # back toward the object until the first link is within the tolerance
+        while settings.approach_to_contact:  # on along +P_d until the first link is within the tolerance
             moved = base.copy()
             moved[:3, 3] -= offset * approach
             self._pose(moved, q)
             gap = min(self._gap(link) for link in geometric)
             if gap <= tolerance:
                 break
+            if offset - farthest <= 1e-9:
+                return TrialResult("no_contact", retract_m=farthest, approach_m=float(retreat - farthest))
             step = max(
                 settings.approach_step_m,
                 np.floor((gap - tolerance) / settings.approach_step_m) * settings.approach_step_m,
             )
-            offset = max(offset - step, 0.0)
+            offset = max(offset - step, farthest)
         base[:3, 3] -= offset * approach
+        near = max(settings.near_m, tolerance)  # the engine's closing steps, as it sizes them
         direction = np.sign(model.closing)
         active = (direction != 0) & ~np.where(direction > 0, q >= model.upper, q <= model.lower)
         by_contact = np.zeros_like(active)
@@ -446,7 +450,7 @@ class ReferenceEngine(BulletClient):
                     continue
                 motion = np.abs(model.closing[joints]) @ model.lever[joints]
                 links = np.flatnonzero(motion > 0)
-                room = np.maximum(distance[links] - tolerance / 2, tolerance / 2)
+                room = np.maximum(np.minimum(distance[links], near) - tolerance / 2, tolerance / 2)
                 advance = (room / motion[links]).min()
                 q[joints] = np.clip(
                     q[joints] + model.closing[joints] * advance, model.lower[joints], model.upper[joints]

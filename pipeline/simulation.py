@@ -11,10 +11,14 @@ candidate (P_g, P_d, P_o, preshape):
    point inside the mesh, no mesh vertex inside a link), jumping over the steps where a link
    point found inside is still inside (its exact ray along the retreat has not left the mesh);
    not clear within ``retract_max_m``: ``collision``;
-3. come back toward the object in steps of at most ``approach_step_m`` (larger while the measured
-   clearance allows) until the first link is within ``contact_tolerance_m``, never past where
-   the hand was placed (OpenRAVE's approach to contact; the paper's Simox port skipped it:
-   ``approach_to_contact`` false closes where the retreat left the hand);
+3. move along +P_d in steps of at most ``approach_step_m`` (larger while the measured clearance
+   allows) until the first link is within ``contact_tolerance_m``, from wherever the retreat
+   left the hand (the placement itself when it was clear) and on past the placement by up to
+   ``approach_max_m`` (OpenRAVE's and GraspIt's approach to contact; so where the hand's grasp
+   centre lies on it decides only where the search starts). A hand that travels the whole
+   bound without touching missed the object: ``no_contact``, fingers not closed (OpenRAVE drops
+   such a plan). The paper's Simox port skipped this step: ``approach_to_contact`` false closes
+   where the retreat left the hand;
 4. close every finger at once, its joints moving by their coupling ratios (a negative ratio
    closes toward the lower limit; URDF mimic joints follow their leader), by conservative
    advancement: no point of a link moves farther than that link's distance to the object less
@@ -66,6 +70,7 @@ class TrialSettings:
     retract_step_m: float
     retract_max_m: float
     approach_step_m: float
+    approach_max_m: float
     near_m: float
     max_close_steps: int
     link_point_spacing_m: float
@@ -81,8 +86,9 @@ class TrialSettings:
 class TrialResult:
     """One trial: outcome, quality, where the hand went and why each finger stopped.
 
-    ``retract_m``: how far back from P_g the hand closed (retreat less the way back);
-    ``approach_m``: how far it came back after retreating clear; ``base_*``: the URDF base
+    ``retract_m``: how far back along -P_d from its placement the hand closed (the retreat less
+    the approach; negative past the placement); ``approach_m``: how far it came on along +P_d
+    after the retreat; ``base_*``: the URDF base
     frame's pose after the approach; ``joint_positions``: closed actuated joints (the hand's
     ``limits`` order); ``touched``: names of the links in contact; ``finger_stops``: per finger,
     one of :data:`STOPS`; ``contact_links``: per contact, the link's index in the hand model."""
@@ -168,6 +174,10 @@ class GraspEngine:
         )
         self.centre, self.torque_scale = torque_reference(self.mesh.vertices, self.mesh.faces)
         self.near = max(self.settings.near_m, self.settings.contact_tolerance_m)
+        #: metres the hand may come on past its placement (-1: the hand's largest graspable diameter)
+        self.approach_max = (
+            hand.max_graspable_diameter if self.settings.approach_max_m == -1 else self.settings.approach_max_m
+        )
         #: seconds spent in each step of the trials run so far (the bench's breakdown)
         self.seconds = dict.fromkeys(("place", "retreat", "approach", "closing", "contacts"), 0.0)
 
@@ -218,7 +228,11 @@ class GraspEngine:
         retreat, direction = retreat[clear], approach[rows]
         final = self._approach(placed, direction, retreat)
         start = self._lap("approach", start)
-        base[:, :3, 3] -= final[:, None] * direction
+        base[:, :3, 3] -= np.where(np.isfinite(final), final, -self.approach_max)[:, None] * direction
+        missed = np.isnan(final)
+        for number, pose, joints, way in zip(rows[missed], base[missed], q[missed], retreat[missed]):
+            results[number] = self._missed(pose, joints, way)
+        rows, q, base, final, retreat = (value[~missed] for value in (rows, q, base, final, retreat))
         q, stops, steps = self._close(base, q)
         start = self._lap("closing", start)
         closed = self._grade_closed(base, q, stops, steps, final, retreat - final)
@@ -333,26 +347,47 @@ class GraspEngine:
         return distance
 
     def _approach(self, placed, direction, retreat):
-        """(n,) offsets after coming back from ``retreat`` until a link is within the tolerance;
-        ``retreat`` itself without ``approach_to_contact`` (the paper's Simox port)."""
+        """(n,) offsets along -P_d (m, negative past the placement) where each hand, coming on
+        along +P_d from ``retreat``, first has a link within the tolerance; NaN where none is
+        after ``approach_max`` past the placement (a miss). ``retreat`` itself without
+        ``approach_to_contact`` (the paper's Simox port)."""
         tolerance, step = self.settings.contact_tolerance_m, self.settings.approach_step_m
         offset = retreat.copy()
         if not self.settings.approach_to_contact:
             return offset
-        pending = np.flatnonzero(offset > 0)
+        farthest = -self.approach_max
+        pending = np.arange(len(offset))
         wanted = np.broadcast_to(self.model.link_radius > 0, (len(placed), len(self.model.links)))
         while len(pending):
             gap = self._distances(_shifted(placed[pending], offset[pending], direction[pending]), wanted[pending]).min(
                 axis=1
             )
             going = gap > tolerance
+            room = offset[pending] - farthest
+            at_bound = room <= 1e-9  # float steps can stop an ulp short of it
+            offset[pending[going & at_bound]] = np.nan
+            going &= ~at_bound
             # a move no longer than the clearance less the tolerance keeps every link clear; one
             # approach step (<= the tolerance, by the params' check) is safe from above it
-            move = np.maximum(step, np.floor((gap - tolerance) / step) * step)
-            move = np.where(going, np.minimum(move, offset[pending]), 0.0)
-            offset[pending] -= move
-            pending = pending[going & (offset[pending] > 0)]
+            move = np.minimum(np.maximum(step, np.floor((gap - tolerance) / step) * step), room)
+            offset[pending[going]] -= move[going]
+            pending = pending[going]
         return offset
+
+    def _missed(self, base, q, retreat):
+        """The ``no_contact`` :class:`TrialResult` of a hand that came on ``approach_max`` past its
+        placement with no link within the tolerance; ``base`` (4, 4) where it ended, ``q`` (J,)
+        its open joints, ``retreat`` (m) how far it had backed out first."""
+        return TrialResult(
+            "no_contact",
+            retract_m=-self.approach_max,
+            approach_m=float(retreat + self.approach_max),
+            base_position=tuple(map(float, base[:3, 3])),
+            base_orientation=tuple(map(float, Rotation.from_matrix(base[:3, :3]).as_quat())),
+            joint_positions=tuple(map(float, q)),
+            finger_stops=("none",) * self.model.fingers,
+            message=f"approach passed the object: no link within the contact tolerance {self.approach_max:g} m past the placement",
+        )
 
     def _close(self, base, q):
         """Close every finger from ``q`` (n, J); returns the closed q, the per-finger stops
@@ -376,12 +411,24 @@ class GraspEngine:
             wanted = (active[rows].astype(float) @ model.moves) > 0
             pairs, links = np.nonzero(wanted & (model.link_radius > 0))
             distance = np.full(wanted.shape, np.inf)
-            distance[pairs, links], touches = measure(
-                self.mesh, model, poses, pairs, links, near=self.near, tolerance=tolerance
-            )
+            distance[pairs, links] = measure(self.mesh, model, poses, pairs, links, near=self.near)
             # a link within the tolerance stops its joints where closing presses it into the
             # object; one touching on its back, which closing moves away, goes on (OpenRAVE and
-            # GraspIt stop a joint on the collision its motion would make)
+            # GraspIt stop a joint on the collision its motion would make). Its touching pairs
+            # are the contacts' own, finer points: at the closing points' 3 mm a pad's edge
+            # touching a curved tip tilts into it by 1 deg where the 1 mm points say 3 deg
+            touching = distance[pairs, links] <= tolerance
+            pairs, links = pairs[touching], links[touching]
+            _, touches = measure(
+                self.mesh,
+                self.contact_model,
+                poses,
+                pairs,
+                links,
+                near=tolerance,
+                tolerance=tolerance,
+                features=self.mesh.contact_features,
+            )
             owner, link = pairs[touches.pair], links[touches.pair]
             velocity = self._velocity(poses, owner, link, touches.points, active[rows][owner])
             pressing = np.zeros(wanted.shape, bool)
@@ -394,7 +441,9 @@ class GraspEngine:
             # per finger and link, metres moved per unit of the finger's closing parameter
             motion = np.einsum("rj,jf,jl->rfl", moving.astype(float), fingers.astype(float), speed)
             sharing = np.maximum((motion > 0).sum(axis=1), 1)  # fingers moving each link
-            room = np.maximum(distance - tolerance / 2, tolerance / 2) / sharing
+            # distances capped at ``near``: beyond it the engine knows only a bound, and a step
+            # sized by it would make where a finger stops hang on the bound's slack
+            room = np.maximum(np.minimum(distance, self.near) - tolerance / 2, tolerance / 2) / sharing
             with np.errstate(divide="ignore", invalid="ignore"):
                 advance = np.where(motion > 0, room[:, None, :] / motion, np.inf).min(axis=2)  # (r, F)
             advance = np.where(np.isfinite(advance), advance, 0.0)
@@ -505,21 +554,6 @@ def grade(regions, model, settings, *, centre, torque_scale, **pose):
         contact_links=owners,
         **pose,
     )
-
-
-def hand_boxes(model, base_positions, base_orientations, joints):
-    """Every collision shape's drawing box of the hands ``model`` with their URDF bases at
-    ``base_positions`` (n, 3) m and ``base_orientations`` (n, 4) quaternions x y z w, and
-    ``joints`` (n, J) in ``model.joints`` order: world centres (n, S, 3), rotations
-    (n, S, 3, 3) and half extents (S, 3)."""
-    base = np.tile(np.eye(4), (len(base_positions), 1, 1))
-    if len(base):
-        base[:, :3, :3] = Rotation.from_quat(base_orientations).as_matrix()
-    base[:, :3, 3] = base_positions
-    poses = link_poses(model, base, np.asarray(joints, np.float64).reshape(len(base), len(model.joints)))
-    poses = poses[:, model.box_link]
-    centres = np.einsum("nsij,sj->nsi", poses[..., :3, :3], model.box_centre) + poses[..., :3, 3]
-    return centres, poses[..., :3, :3] @ model.box_rotation, model.box_half
 
 
 # A worker process's engines, one per hand, built on first use (pipeline.trials runs the pool,

@@ -20,6 +20,7 @@ def main(argv=None):
         "hand": args.hand,
         "approach_directions": config.candidates.approach_directions,
         "flipped_candidates": config.candidates.flipped_candidates,
+        "centre_rims": config.candidates.centre_rims,
         "max_width_ratio": config.concavity.max_width_ratio,
     }
     inputs = [args.symmetry, args.concavities]
@@ -30,6 +31,7 @@ def main(argv=None):
             [get_hand(args.hand)],
             approach_directions=used["approach_directions"],
             flipped_candidates=used["flipped_candidates"],
+            centre_rims=used["centre_rims"],
             max_width_ratio=used["max_width_ratio"],
         )
         write_table(args.out, table)

@@ -2,7 +2,9 @@
 
 Candidates only (no simulation), default params, seed 0, both hands. Every region below is
 written from the dimensions in the builder (pipeline/procedural.py), in the object frame at
-scale 1; a candidate's grasp point P_g is its sphere centre.
+scale 1; a candidate is where its sphere's centre is (the paper's P_g; a rim candidate's P_g
+moves across a thin wall's rim to centre the hand on the material between its fingers, which
+does not change the part it grasps).
 """
 
 import functools
@@ -10,7 +12,6 @@ import functools
 import numpy as np
 import pytest
 
-from pipeline.arrays import vectors
 from pipeline.hands import get_hand
 from pipeline.params import Params
 from pipeline.plan import run_chain
@@ -26,11 +27,12 @@ def planned(name, scale=1.0):
 
 
 def grasp_points(name, hand, scale=1.0):
-    """(n, 3) grasp points of ``hand``'s candidates from the paper's planner (not those that
+    """(n, 3) sphere centres of ``hand``'s candidates from the paper's planner (not those that
     encompass a concavity, its future work), divided by ``scale`` (builder frame)."""
-    candidates, _ = planned(name, scale)
+    candidates, symmetry = planned(name, scale)
     rows = (candidates.hand == hand) & (candidates.sphere_class != "encompassing")
-    return vectors(candidates[rows], "grasp") / scale
+    spheres = np.searchsorted(symmetry.sphere_index, candidates.sphere_index[rows])
+    return np.asarray(symmetry.centers)[spheres] / scale
 
 
 def near_segment(points, start, end, radius):

@@ -17,7 +17,7 @@ from pipeline.logbook import file_digest, mcap_log, read_log
 from pipeline.params import CheckParams, Params, SampleParams, SimulateParams
 from pipeline.plan import run_chain, summary
 from pipeline.recording import record_chain, rerun_recording
-from pipeline.simulation import hand_boxes
+from pipeline.kinematics import hand_boxes
 
 HANDS = ["armar3", "barrett"]
 

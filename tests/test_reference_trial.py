@@ -87,7 +87,9 @@ def test_reference_distances_of_every_link_match_its_brute_force_pairs(name):
 
 def test_reference_jaw_squeezing_a_cube_gets_the_pads_face_contacts():
     """The jaw across a 4 cm cube (closing along x, the 20 mm pads stopping 1 mm off the
-    faces): force closure; the contacts with a face's normal lie on that face (x = +-2 cm),
+    faces), placed clear and come on until its palm is within the 2 mm tolerance of the top
+    face: force closure; the palm's contacts lie on the top face (z = 2 cm, normal +z); the
+    pads' contacts with a face's normal lie on that face (x = +-2 cm),
     from z = -2 to 2 cm and in y as far as the cube's edges stay within the 2 mm tolerance of
     the pad's edge, 10 + sqrt(2^2 - 1^2) = 11.73 mm (less the 0.5 mm sampling of the edges);
     every other contact lies on the cube's top or bottom edge, where the pads' edges pass
@@ -95,14 +97,25 @@ def test_reference_jaw_squeezing_a_cube_gets_the_pads_face_contacts():
     reference = ReferenceEngine(cube(), HANDS["parallel_jaw"])
     result = reference.trial([0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0])
     reference.close()
-    assert result.outcome == "force_closure" and set(result.touched) == {"left_pad", "right_pad"}
+    assert result.outcome == "force_closure" and set(result.touched) == {"palm", "left_pad", "right_pad"}
+    # the open palm starts 5 mm above the top and stops within the tolerance: 3 mm on, or 4 mm
+    # where pybullet's float32 distance puts the 2 mm gap a hair above the tolerance
+    assert -0.004 - 1e-9 <= result.retract_m <= -0.003 + 1e-9
     np.testing.assert_allclose(result.joint_positions, 0.019, atol=1e-6)
-    points, normals = result.contact_points, result.contact_normals
+    # the palm's contacts, all with normal +z: on the top face, or on the cube's vertical edges
+    # within the tolerance below it (a sharp edge takes the palm face's normal)
+    palm = result.contact_links == 0
+    np.testing.assert_allclose(result.contact_normals[palm], [[0.0, 0.0, 1.0]] * palm.sum(), atol=1e-9)
+    heights = result.contact_points[palm, 2]
+    assert heights.max() == pytest.approx(0.02, abs=1e-12) and heights.min() >= 0.02 - 0.002 - 1e-12
+    points, normals = result.contact_points[~palm], result.contact_normals[~palm]
     on_face = np.abs(normals[:, 0]) > 1 - 1e-9
     for side in (1.0, -1.0):
         face = points[on_face & (np.sign(normals[:, 0]) == side)]
         np.testing.assert_allclose(face[:, 0], side * 0.02, atol=1e-12)
-        np.testing.assert_allclose([face[:, 2].min(), face[:, 2].max()], [-0.02, 0.02], atol=1e-12)
+        # from the bottom edge to within 1 mm of the top one (the pads' tops meet the palm,
+        # which rests on the top face; the edges sampled every 0.5 mm)
+        assert face[:, 2].min() == pytest.approx(-0.02, abs=1e-12) and 0.019 - 1e-12 <= face[:, 2].max() <= 0.02
         reach = 0.01 + np.sqrt(0.002**2 - 0.001**2)
         assert reach - 5e-4 <= -face[:, 1].min() <= reach and reach - 5e-4 <= face[:, 1].max() <= reach
     np.testing.assert_allclose(np.abs(points[~on_face][:, [0, 2]]), 0.02, atol=1e-12)

@@ -72,12 +72,17 @@ def test_hand_frame_maps_approach_and_wrap_onto_the_candidate():
 def test_parallel_jaw_on_a_cube_along_a_face_normal_is_force_closure():
     result = world("parallel_jaw", "cube").trial([0, 0, 0], [0, 0, -1], [1, 0, 0])
     assert result.outcome == "force_closure" and result.epsilon > 0
-    assert result.retract_m == 0.0  # the open jaw (80 mm) clears the 40 mm cube at once
+    # the open jaw (80 mm) clears the 40 mm cube at once, and comes on 3 mm until its palm,
+    # placed 5 mm above the top face, is within the 2 mm tolerance of it
+    assert (result.retract_m, result.approach_m) == (pytest.approx(-0.003, abs=1e-9), pytest.approx(0.003, abs=1e-9))
+    assert "palm" in result.touched
     # each pad stops on its face: 40 mm - 20 mm = 20 mm of travel, within the 2 mm contact tolerance
     assert result.joint_positions == pytest.approx((0.02, 0.02), abs=0.002)
-    assert set(result.touched) == {"left_pad", "right_pad"} and result.finger_stops == ("contact", "contact")
-    np.testing.assert_allclose(np.abs(result.contact_points[:, 1]), 0.02, atol=1e-7)  # on the two side faces
-    np.testing.assert_allclose(np.abs(result.contact_normals[:, 1]), 1.0, atol=1e-9)  # the faces' normals
+    assert set(result.touched) == {"palm", "left_pad", "right_pad"} and result.finger_stops == ("contact", "contact")
+    pads = result.contact_links != 0
+    np.testing.assert_allclose(np.abs(result.contact_points[pads, 1]), 0.02, atol=1e-7)  # on the two side faces
+    np.testing.assert_allclose(np.abs(result.contact_normals[pads, 1]), 1.0, atol=1e-9)  # the faces' normals
+    np.testing.assert_allclose(result.contact_points[~pads, 2], 0.02, atol=1e-7)  # the palm's on the top face
 
 
 def test_barrett_on_a_cylinder_approached_orthogonally_is_force_closure():
@@ -93,8 +98,9 @@ def test_barrett_distal_joint_follows_the_coupling_unless_its_proximal_link_stop
     barrett, checked = HANDS["barrett"], 0
     for angle, back in itertools.product(np.linspace(0, 2 * np.pi, 6, endpoint=False), (0.0, 0.05, 0.08)):
         approach = np.array([np.cos(angle), np.sin(angle), 0.0])
-        bar = world("barrett", "cylinder")
-        # held farther out, the cylinder meets the distal links first
+        # closing where placed (the retreat-only protocol), held farther out the cylinder meets
+        # the distal links first
+        bar = GraspEngine(cylinder(), barrett, approach_to_contact=False)
         result = bar.trial(np.array([0, 0, 0.01]) - back * approach, approach, [0, 0, 1])
         joints = dict(zip(barrett.limits, result.joint_positions))
         for prefix in ("f1", "f2", "f3"):
@@ -106,7 +112,7 @@ def test_barrett_distal_joint_follows_the_coupling_unless_its_proximal_link_stop
     # with nothing to grasp every finger closes to its limits, which the coupling matches:
     # 0.344 x 2.44 rad = 0.839 against the distal limit 0.84 (the stop blocks the proximal joint
     # as a contact would, and the distal closes the last 0.6 mrad on its own)
-    free = world("barrett", "cube").trial([1.0, 0, 0], [0, 0, -1], [1, 0, 0])
+    free = GraspEngine(cube(), barrett, approach_to_contact=False).trial([1.0, 0, 0], [0, 0, -1], [1, 0, 0])
     assert free.outcome == "no_contact"
     joints = dict(zip(barrett.limits, free.joint_positions))
     for prefix in ("f1", "f2", "f3"):

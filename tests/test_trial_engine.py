@@ -30,18 +30,23 @@ def plate():
 
 def test_jaw_pinching_a_thin_plate_edge_is_force_closure_everywhere_with_the_face_normals():
     """The 6 mm plate's edge y = 0.05 m, pinched across its thickness at 7 places along it: the
-    pads lie flat on the two faces next to the edge (closing along z = P_d x P_o)."""
+    hand comes on until its palm is within the tolerance of the edge's face, and the pads lie
+    flat on the two faces next to the edge (closing along z = P_d x P_o)."""
     engine = GraspEngine(plate(), HANDS["parallel_jaw"])
     places = np.linspace(-0.06, 0.06, 7)
     grasp = np.column_stack([places, np.full(7, 0.045), np.zeros(7)])
     results = engine.run(grasp, np.tile([0.0, -1.0, 0.0], (7, 1)), np.tile([1.0, 0.0, 0.0], (7, 1)), [None] * 7)
     assert [result.outcome for result in results] == ["force_closure"] * 7
     for result in results:
-        assert set(result.touched) == {"left_pad", "right_pad"}
-        # every contact on a face (z = +-3 mm) with that face's normal, within 1 degree
-        np.testing.assert_allclose(np.abs(result.contact_points[:, 2]), 0.003, atol=1e-7)
-        assert (np.abs(result.contact_normals[:, 2]) >= np.cos(np.radians(1.0))).all()
-        assert (np.sign(result.contact_normals[:, 2]) == np.sign(result.contact_points[:, 2])).all()
+        assert set(result.touched) == {"palm", "left_pad", "right_pad"}
+        palm = result.contact_links == 0
+        np.testing.assert_allclose(result.contact_points[palm, 1], 0.05, atol=1e-7)  # on the edge's face
+        assert (result.contact_normals[palm, 1] >= np.cos(np.radians(1.0))).all()
+        # every pad contact on a face (z = +-3 mm) with that face's normal, within 1 degree
+        points, normals = result.contact_points[~palm], result.contact_normals[~palm]
+        np.testing.assert_allclose(np.abs(points[:, 2]), 0.003, atol=1e-7)
+        assert (np.abs(normals[:, 2]) >= np.cos(np.radians(1.0))).all()
+        assert (np.sign(normals[:, 2]) == np.sign(points[:, 2])).all()
 
 
 @pytest.mark.parametrize("name", sorted(HANDS))
@@ -140,9 +145,13 @@ def test_franka_hand_from_pybullet_data_closes_on_a_cube_with_both_fingers():
     franka = HANDS["franka"]
     assert franka.urdf.endswith("franka_panda/panda.urdf") and franka.max_graspable_diameter == 0.08
     result = GraspEngine(cube, franka).trial([0, 0, 0], [0, 0, -1], [1, 0, 0])
-    assert result.outcome == "force_closure" and set(result.touched) == {"panda_leftfinger", "panda_rightfinger"}
-    # the fingers close toward the lower limit (ratio -1) from 0.04 m open to about 0.02 m on the cube
-    assert all(0.018 <= value <= 0.0215 for value in result.joint_positions)
+    assert result.outcome == "force_closure"
+    # placed clear, the hand comes on until its palm is within the tolerance of the top face
+    assert set(result.touched) == {"panda_hand", "panda_leftfinger", "panda_rightfinger"}
+    assert result.retract_m < 0 and result.approach_m == -result.retract_m
+    # the fingers close toward the lower limit (ratio -1) from 0.04 m open to within the 2 mm
+    # contact tolerance of the cube's faces (0.02 m)
+    assert all(0.018 <= value <= 0.022 + 1e-9 for value in result.joint_positions)
     assert result.finger_stops == ("contact", "contact")
 
 
@@ -174,7 +183,8 @@ def test_a_mimic_joint_closes_with_its_ratio(tmp_path):
     spec_path.write_text(yaml.safe_dump(spec))
     hand = get_hand(str(spec_path))
     cube = surface("primitive:box", extents=(0.04, 0.04, 0.04))
-    result = GraspEngine(cube, hand).trial([1.0, 0, 0], [0, 0, -1], [1, 0, 0])  # far from the cube
+    # far from the cube, closing where placed (the retreat-only protocol: no approach to miss it)
+    result = GraspEngine(cube, hand, approach_to_contact=False).trial([1.0, 0, 0], [0, 0, -1], [1, 0, 0])
     assert result.outcome == "no_contact" and result.joint_positions == (0.04,) and result.finger_stops == ("limit",)
     model = hand_model(hand)
     open_poses, closed_poses = (link_poses(model, np.eye(4)[None], np.array([[value]]))[0] for value in (0.0, 0.04))
@@ -327,9 +337,12 @@ def test_a_point_above_a_face_beside_an_obtuse_edge_is_at_its_plane_distance():
 
 def test_barrett_on_the_rim_of_the_mugs_6_mm_wall_touches_both_faces():
     """The procedural mug's wall (r 44 to 50 mm, rim at 12 cm) grasped from above on the side
-    away from the handle, the fingers closing across the wall (P_d x P_o radial)."""
+    away from the handle, the fingers closing across the wall (P_d x P_o radial), where the
+    hand was placed (the retreat-only protocol: coming on, the inner fingertips would reach the
+    mug's floor first, 11 cm down)."""
     mug = surface("primitive:mug")
-    result = GraspEngine(mug, HANDS["barrett"]).trial([-0.047, 0.0, 0.115], [0, 0, -1], [0, 1, 0])
+    engine = GraspEngine(mug, HANDS["barrett"], approach_to_contact=False)
+    result = engine.trial([-0.047, 0.0, 0.115], [0, 0, -1], [0, 1, 0])
     radius = np.hypot(*result.contact_points[:, :2].T)
     outward = np.einsum("ij,ij->i", result.contact_normals[:, :2], result.contact_points[:, :2]) / radius
     outer = np.isclose(radius, 0.05, atol=5e-4) & (outward > 0.99)
@@ -428,15 +441,20 @@ def test_retreat_only_closes_where_the_retreat_left_the_hand():
     assert "palm" in near.touched and set(back.touched) == {"left_pad", "right_pad"}
     assert near.outcome == back.outcome == "force_closure"
     assert near.joint_positions == back.joint_positions
-    # where nothing is to be gained the two agree: placed clear, or the retreat ends touching
-    for depth in (0.0, -0.04):
-        same = [
+    # where the retreat ends touching the two agree; placed clear, only the approach comes on
+    # past the placement (3 mm, to the top face) and the retreat-only variant closes there
+    (near, back), (clear, placed) = (
+        [
             GraspEngine(cube(), HANDS["parallel_jaw"], approach_to_contact=flag).trial(
                 [0.0, 0.0, depth], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]
             )
             for flag in (True, False)
         ]
-        assert (same[0].retract_m, same[0].epsilon) == (same[1].retract_m, same[1].epsilon)
+        for depth in (-0.04, 0.0)
+    )
+    assert (near.retract_m, near.epsilon) == (back.retract_m, back.epsilon)
+    assert (clear.retract_m, placed.retract_m) == (pytest.approx(-0.003, abs=1e-9), 0.0)
+    assert "palm" in clear.touched and "palm" not in placed.touched
 
 
 def test_without_palm_contacts_the_same_closed_hand_is_graded_on_its_fingers_alone():
