@@ -222,7 +222,7 @@ class SimulateParams:
     """A link this close to the object (exact mesh distance) touches it: it stops, and its
     touching pairs are contacts."""
     retract_step_m: float = 0.005
-    """Retreat step along -P_d until the hand is clear (then it comes back in fine steps)."""
+    """Retreat step along -P_d until the hand is clear (then it comes on to contact in fine steps)."""
     retract_max_m: float = 0.2
     """A candidate whose hand is not clear after this retreat is a ``collision``."""
     approach_step_m: float = 0.001

@@ -15,12 +15,14 @@ trials (``trials.parquet``): one row per trial; ``planner`` (mat | baseline | en
 ``candidate_id`` (the candidates table's id; the draw number for the baseline), ``sphere_index``
 and ``sphere_class`` (-1 and "surface" for the baseline), ``preshape``, ``grasp_*``,
 ``approach_*``, ``orient_*`` (the target), ``outcome`` (one of :data:`OUTCOMES`), ``epsilon``,
-``contacts``, ``retract_m`` (how far back from P_g the hand closed),
-``approach_m`` (how far it came back to contact after retreating clear), ``base_*`` (position,
+``contacts``, ``retract_m`` (how far back along -P_d from its placement the hand closed;
+negative past it), ``approach_m`` (how far it came on to contact after retreating clear),
+``base_*`` (position,
 m) and ``base_q*`` (quaternion x, y, z, w) of the hand's URDF base frame as it closed,
 ``joints`` (closed joint values in the hand's ``limits`` order), ``close_steps``, ``touched``
-(names of the links in contact), ``finger_stops`` (per finger: contact, limit, step_cap),
-``message`` (why a candidate could not be tried, if so).
+(names of the links in contact), ``finger_stops`` (per finger: contact, limit, step_cap;
+none where the approach missed the object), ``message`` (why a candidate could not be tried,
+or that its approach passed the object, if so).
 
 contacts (``contacts.parquet``): one row per contact; ``trial`` (row number in trials),
 ``link`` (the link's index in the hand model, 0 the base link, the palm), ``x, y, z`` (m) and
