@@ -47,6 +47,7 @@ VARIANTS = (
     ("approach_step_m", 0.0005),
     ("approach_step_m", 0.002),
     ("approach_to_contact", False),
+    ("approach_max_m", 0.0),
     ("contact_tolerance_m", 0.001),
     ("contact_tolerance_m", 0.004),
     ("coplanar_deg", 1.0),

@@ -110,10 +110,7 @@ def centre_on_material(grasp, approach, orient, radius, centres, radii, gap):
         offset = centres[index] - grasp[rows][owner]
         along, ahead, side = (np.einsum("ij,ij->i", offset, axis[rows][owner]) for axis in (orient, approach, across))
         between = (
-            (np.abs(along) <= half_width)
-            & (ahead >= -radius[rows][owner])
-            & (ahead <= reach)
-            & (np.abs(side) <= width)
+            (np.abs(along) <= half_width) & (ahead >= -radius[rows][owner]) & (ahead <= reach) & (np.abs(side) <= width)
         )
         low, high = np.full(len(rows), np.inf), np.full(len(rows), -np.inf)
         np.minimum.at(low, owner[between], side[between] - radii[index[between]])

@@ -130,7 +130,7 @@ def test_the_command_prints_the_table_and_writes_the_csv(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "approach_to_contact=false" in printed and "contact_tolerance_m=0.004" in printed and "fc %" in printed
     written = pd.read_csv(out)
-    assert len(written) == 2 * 13 and set(written.planner) == {"mat", "baseline"}
+    assert len(written) == 2 * 14 and set(written.planner) == {"mat", "baseline"}
     assert {"variant", "setting", "force_closure_pct", "force_closure_delta", "physics_success_pct"} <= set(
         written.columns
     )

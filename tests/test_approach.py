@@ -22,7 +22,9 @@ def moved_spec(tmp_path, hand, shift):
     from the palm along the approach."""
     path = export_hand(hand, tmp_path)
     spec = yaml.safe_load(path.read_text())
-    spec["grasp_centre"] = [float(value) for value in np.add(spec["grasp_centre"], shift * np.asarray(spec["approach"]))]
+    spec["grasp_centre"] = [
+        float(value) for value in np.add(spec["grasp_centre"], shift * np.asarray(spec["approach"]))
+    ]
     spec["name"] = f"{hand.name}_moved_{round(shift * 1000)}mm"
     moved = tmp_path / f"{spec['name']}.yaml"
     moved.write_text(yaml.safe_dump(spec))
