@@ -88,9 +88,10 @@ def test_jaw_on_a_cube_is_robust_without_noise_and_less_so_as_the_turn_grows():
     """The issue's known answer: the symmetric jaw-on-cube grasp is force closure in every copy
     at zero noise (1.0, its mean epsilon the nominal trial's), and stays so when only moved (5 mm
     per axis: the pads stay flat on the faces). A turn tilts the pads, which then touch the
-    faces along an edge: the fraction falls as the turn grows (64 copies, seeded; measured when
-    written: 1.0 at 0.01 rad, 0.41 at 0.05, 0.17 at 0.2; the kinematic trial never lets the
-    cube turn into the pads)."""
+    faces along an edge: the fraction falls as the turn grows (64 copies, seeded; the kinematic
+    trial never lets the cube turn into the pads). Measured when written: 1.0 at 0.01 rad, 0.41
+    at 0.05, 0.17 at 0.2; since the hand comes on until its palm rests on the top face (issue
+    30), whose contacts hold a tilted grasp more often: 1.0, 0.81, 0.28."""
     engine = GraspEngine(cube(), HANDS["parallel_jaw"])
     nominal = engine.run(GRASP, APPROACH, ORIENT, [None])[0]
 
@@ -101,7 +102,7 @@ def test_jaw_on_a_cube_is_robust_without_noise_and_less_so_as_the_turn_grows():
     assert fraction[0] == 1.0 and epsilon[0] == pytest.approx(nominal.epsilon, abs=1e-12)
     assert robust(0.005, 0.0)[0][0] == 1.0
     turned = [robust(0.0, angle)[0][0] for angle in (0.01, 0.05, 0.2)]
-    assert turned[0] >= 0.9 and turned[1] < 0.7 and turned[2] < turned[1], turned
+    assert turned[0] >= 0.9 and turned[1] < turned[0] and turned[2] < 0.5 and turned[2] < turned[1], turned
 
 
 def test_friction_noise_alone_grades_the_nominal_closed_hand_at_each_copys_mu():
