@@ -360,8 +360,10 @@ def test_outcomes_agree_with_the_pybullet_reference_on_the_duck():
     pressed a pad sliding past a vertex beside its side face. Session 16 (contact normals on
     smooth facet seams clamped into their cones): jaw 20/20, Barrett 18/20, once a press needs
     more than 2 deg into the surface (with 1e-6, 17 and 18: a pad 89.5 deg to a seam's normal
-    pressed in one and not the other). 37 of the 40 is the floor (room for another platform's
-    rounding in where a finger stops)."""
+    pressed in one and not the other). Issue 30 (closing steps sized by distances capped at
+    ``near_m`` in both, the engine's pressing test on its 1 mm contact points): jaw 19/20,
+    Barrett 20/20; before it the jaw was 16 here (a pad touching the duck's tail pressed at 1 deg
+    on the 3 mm closing points, 6.4 deg on the reference's). The floor is 95 % per hand."""
     from pipeline import sphere_grid
     from pipeline.arrays import vectors
     from pipeline.candidates import generate
@@ -390,7 +392,7 @@ def test_outcomes_agree_with_the_pybullet_reference_on_the_duck():
         theirs = reference.run(*targets)
         reference.close()
         agree[name] = sum(a.outcome == b.outcome for a, b in zip(ours, theirs))
-    assert sum(agree.values()) >= 37, agree
+    assert min(agree.values()) >= 19, agree
 
 
 def test_jaw_contacts_on_a_finely_meshed_cube_reach_as_far_as_its_edges_stay_within_the_tolerance():
