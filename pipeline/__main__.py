@@ -1,4 +1,4 @@
-"""Command line: ``medial-grasp {plan,batch,bench,hands,objects,ablate,export} ...`` (also ``python -m pipeline``;
+"""Command line: ``medial-grasp {plan,batch,bench,hands,objects,ablate,export,evaluate} ...`` (also ``python -m pipeline``;
 ``--help`` on each)."""
 
 import argparse
@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from .stage_io import PARAMS_FILE, one_line_errors, progress_bar
+from .errors import BadInputError, BadParamsError
 from .params import Params, load_params
 
 PARAMS_HELP = f"params file (default: {PARAMS_FILE} in the current folder if present, else built-in defaults)"
@@ -295,7 +296,37 @@ def main(argv=None):
     export.add_argument(
         "--scale", type=float, default=1.0, help="a batch output's --scale (not recorded in it; default: %(default)s)"
     )
+    evaluate = _subcommand(
+        commands,
+        "evaluate",
+        help="label a grasp file (ACRONYM's HDF5, or an export) with this project's verdicts",
+        description="Place the hand at each grasp's pose, open at the file's configuration, close it where it is\n"
+        "(no retreat, no approach), and label it: outcome, force closure, epsilon, robust force closure and\n"
+        "pybullet's lift-and-shake, at the file's object mass and friction. Writes DIR/labels.parquet, the\n"
+        "file with the labels under grasps/qualities/medial_grasp/, and, when the file has its own labels\n"
+        "(grasps/qualities/flex/object_in_gripper), DIR/agreement.json (see docs/evaluate.md).",
+        examples=[
+            f"{prog} evaluate acronym/grasps/Mug_10f6e0_0.0002.h5 --mesh meshes/Mug/10f6e0.obj --sample 200 --out labels/mug",
+            f"{prog} evaluate grasps/box-1.0-franka.h5 --out labels/box   # an export: its own mesh inside",
+        ],
+    )
+    evaluate.add_argument("grasps", metavar="GRASPS", help="ACRONYM-layout .h5, or a medial-grasp export (.h5/.json)")
+    evaluate.add_argument("--out", required=True, help="folder for labels.parquet, the labelled file, agreement.json")
+    evaluate.add_argument(
+        "--hand",
+        default=None,
+        help="built-in hand name or hand spec .yaml/.toml (default: the file's gripper/type; panda = franka)",
+    )
+    evaluate.add_argument("--mesh", default=None, help="the object's mesh, instead of the file's object/file")
+    evaluate.add_argument("--sample", type=int, default=None, help="label a seeded sample of N grasps (default: all)")
+    evaluate.add_argument("--seed", type=int, default=None, help="overrides the params seed (default: params seed)")
+    evaluate.add_argument(
+        "--workers", type=int, default=None, help="processes (default: params simulate.workers; 0 = every core)"
+    )
+    evaluate.add_argument("--params", default=None, help=PARAMS_HELP)
     args = parser.parse_args(argv)
+    if args.command == "evaluate":
+        return _evaluate(args)
     if args.command == "export":
         return _export(args)
     if args.command == "objects":
@@ -373,7 +404,10 @@ def _command_params(args):
     params = load_params(params_path) if params_path else Params()
     overrides = {
         key: value
-        for key, value in (("spheres_per_object", args.spheres), ("baseline_trials", getattr(args, "baseline", None)))
+        for key, value in (
+            ("spheres_per_object", getattr(args, "spheres", None)),
+            ("baseline_trials", getattr(args, "baseline", None)),
+        )
         if value is not None
     }
     if overrides:
@@ -480,6 +514,80 @@ def _export(args):
         f"export {args.run_dir} -> {args.out}: {len(written)} files, {sum(count for _, count in written)} grasps "
         f"in {time.perf_counter() - start:.1f} s"
     )
+
+
+def _evaluate(args):
+    import time
+
+    from .evaluate import agreement, agreement_text, label_grasps, sample_rows, verdict_settings, write_labels
+    from .grasp_sets import DATASET_GRIPPER, read_grasp_set
+    from .hands import get_hand
+    from .pool import default_workers
+
+    start = time.perf_counter()
+    params = _command_params(args)
+    seed = params.seed if args.seed is None else args.seed
+    out = Path(args.out)
+    if out.resolve() == Path(args.grasps).resolve().parent:
+        raise BadParamsError(
+            f"evaluate: --out {out} is the folder of {args.grasps}; the labelled copy would replace it"
+        )
+    given = None
+    if args.hand is not None:
+        given = get_hand(args.hand)
+    grasp_set = read_grasp_set(args.grasps, mesh=args.mesh, hands=[given] if given else [])
+    if given is not None and given.name != grasp_set.hand.name:
+        raise BadInputError(
+            f"{args.grasps}: its grasps are for gripper/type {grasp_set.gripper!r} "
+            f"({DATASET_GRIPPER.get(grasp_set.hand.name, grasp_set.hand.name)}), not hand {given.name!r}"
+        )
+    rows = sample_rows(len(grasp_set), args.sample, seed)
+    settings, physics, robust = verdict_settings(grasp_set, params)
+    workers = default_workers(params.simulate.workers if args.workers is None else args.workers)
+    print(
+        f"evaluate {args.grasps}: {len(rows)} of {len(grasp_set)} grasps, hand {grasp_set.hand.name} "
+        f"(gripper/type {grasp_set.gripper}), mass {'file' if grasp_set.mass_kg else 'density rule'}, "
+        f"mu {settings['mu']:g}, {workers} workers"
+    )
+    with progress_bar("evaluate", unit="grasp") as progress:
+        table = label_grasps(
+            grasp_set,
+            rows,
+            settings=settings,
+            physics=physics,
+            robust=robust,
+            seed=seed,
+            vhacd_resolution=params.checks.vhacd_resolution,
+            workers=workers,
+            progress=progress,
+        )
+    found = agreement(table)
+    meta = {
+        "grasp_file": str(args.grasps),
+        "mesh": grasp_set.mesh_file,
+        "hand": grasp_set.hand.name,
+        "gripper_type": grasp_set.gripper,
+        "grasps": len(grasp_set),
+        "labelled_grasps": len(rows),
+        "seed": seed,
+        "mu": settings["mu"],
+        "mass_kg": grasp_set.mass_kg,
+        "mass_rule": "the file's object/mass"
+        if grasp_set.mass_kg is not None
+        else "mesh volume x checks.density_kg_m3",
+        "robust_samples": robust["samples"],
+    }
+    if grasp_set.mass_kg is None and physics is not None:
+        from .physics import mesh_volume
+
+        meta["mass_kg"] = physics.density_kg_m3 * mesh_volume(grasp_set.vertices, grasp_set.faces)
+    written = write_labels(out, grasp_set, table, found, meta=meta)
+    counts = table.outcome.value_counts().to_dict()
+    print(f"outcomes: {', '.join(f'{name} {count}' for name, count in counts.items())}")
+    if found is not None:
+        for line in agreement_text(found):
+            print(line)
+    print(f"wrote {', '.join(map(str, written))} in {time.perf_counter() - start:.1f} s")
 
 
 def _ablate(args):
