@@ -181,9 +181,7 @@ class Labeller:
             )
         else:
             frame["robust_fc"] = frame["robust_epsilon"] = np.nan
-        physics = [("no_grasp", np.nan, np.nan)] * len(results)
-        if self.check is None:
-            physics = [("", np.nan, np.nan)] * len(results)
+        physics = [("no_grasp" if self.check else "", np.nan, np.nan)] * len(results)
         for k, result in enumerate(results):
             if self.check is not None and result.outcome in CLOSED:
                 found = self.check.check(result.base_position, result.base_orientation, result.joint_positions)
@@ -204,7 +202,8 @@ def object_parts(vertices, faces, *, vhacd_resolution):
 
     from .physics import decompose, mesh_volume
 
-    if abs(ConvexHull(vertices).volume - mesh_volume(vertices, faces)) <= 1e-9 * ConvexHull(vertices).volume:
+    hull_volume = ConvexHull(vertices).volume
+    if abs(hull_volume - mesh_volume(vertices, faces)) <= 1e-9 * hull_volume:
         return [np.asarray(vertices, np.float64)]
     surface = SimpleNamespace(vertices=vertices, faces=faces, source="the object", key="evaluate")
     return decompose(surface, vhacd_resolution=vhacd_resolution).parts
