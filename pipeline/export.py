@@ -5,7 +5,9 @@ A grasp is a trial whose hand closed: outcome ``force_closure``, ``no_force_clos
 ``no_contact`` (:data:`CLOSED`); the others (``collision``, ``step_cap``, ``error``, and any new
 outcome) are counted as skipped. Per grasp, in the object frame (the mesh as simulated, metres):
 
-- ``transform`` (4, 4): T_object_hand, the pose of the hand's URDF base frame as it closed,
+- ``transform`` (4, 4): T_object_hand, the pose of the hand's URDF base frame as it closed
+  (HDF5: a hand with a dataset gripper, ``franka``, in that gripper's frame instead, ACRONYM's
+  ``panda``: :func:`pipeline.grasp_sets.dataset_frame`),
   recomputed from the trial's candidate and ``retract_m`` exactly as the trial engine placed it
   (and checked against the trial's ``base_*`` / ``base_q*`` columns), so that
   :meth:`pipeline.simulation.GraspEngine.replay` of it and of ``joints`` gives the recorded
@@ -34,6 +36,7 @@ import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from .errors import ArtefactError, BadInputError, BadParamsError
+from .grasp_sets import DATASET_FRAMES, GRIPPER_FRAMES, dataset_frame, rigid_inverse
 from .simulation import OUTCOMES
 
 FORMATS = ("acronym", "json")
@@ -45,6 +48,10 @@ UNITS = "metres and radians (a prismatic joint in metres)"
 OBJECT_FRAME = "the object mesh file's coordinates times object scale: the mesh as simulated, in metres"
 HAND_FRAME = "the hand URDF's root link frame (base_link)"
 TRANSFORM = "T_object_hand: maps points of the hand's base frame into the object frame (row-major 4x4)"
+GRIPPER_TRANSFORM = (
+    "T_object_gripper: maps points of the dataset gripper's frame into the object frame (row-major 4x4); "
+    "T_object_hand = T_object_gripper @ gripper/T_gripper_base"
+)
 PREGRASP = (
     "the closed pose moved back along -approach (object frame) by approach_m + standoff_m, with the "
     "preshape's joints: where the trial's approach started, plus the standoff"
@@ -545,9 +552,12 @@ def write_acronym(path, run, hand, found, *, mesh_file, urdf_file, standoff, ver
 
     from .artefacts import atomic_path
 
-    header = _header(
-        run, hand, hand_info(hand), mesh_file=mesh_file, urdf_file=urdf_file, standoff=standoff, found=found
-    )
+    gripper, frame = dataset_frame(hand)
+    info = gripper_info(hand_info(hand), frame)
+    header = _header(run, hand, info, mesh_file=mesh_file, urdf_file=urdf_file, standoff=standoff, found=found)
+    if gripper in DATASET_FRAMES:
+        header.update(hand_frame=DATASET_FRAMES[gripper], transform=GRIPPER_TRANSFORM)
+    to_gripper = rigid_inverse(frame)
     text = h5py.string_dtype()
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as h5:
         for key in ("format", "units", "object_frame", "hand_frame", "transform", "pregrasp", "ranking", "source"):
@@ -565,18 +575,20 @@ def write_acronym(path, run, hand, found, *, mesh_file, urdf_file, standoff, ver
         h5.create_dataset("object/vertices", data=np.asarray(vertices, np.float64), compression="gzip")
         h5.create_dataset("object/faces", data=np.asarray(faces, np.int64), compression="gzip")
         h5["object"].attrs["frame"] = OBJECT_FRAME
-        info = header["hand"]
-        h5["gripper/type"] = hand.name
+        h5["gripper/type"] = gripper
         h5["gripper/urdf"] = urdf_file
         h5["gripper/joint_names"] = np.array(info["joint_names"], dtype=text)
+        h5["gripper/configuration"] = gripper_configuration(hand, gripper)
+        h5["gripper/T_gripper_base"] = frame
         for key in ("base_link", "approach", "wrap", "grasp_centre"):
             h5["gripper"].attrs[key] = info[key]
         h5["gripper"].attrs["mimic_joints"] = json.dumps(info["mimic_joints"])
-        h5["gripper"].attrs["frame"] = HAND_FRAME
+        h5["gripper"].attrs["frame"] = header["hand_frame"]
         group = h5.create_group("grasps")
-        group["transforms"] = found["transforms"]
-        group["transforms"].attrs["frame"] = TRANSFORM
-        group["pregrasp_transforms"] = found["pregrasp_transforms"]
+        # exact: T_gripper_base holds integers (grasp_sets.GRIPPER_FRAMES)
+        group["transforms"] = found["transforms"] @ to_gripper
+        group["transforms"].attrs["frame"] = header["transform"]
+        group["pregrasp_transforms"] = found["pregrasp_transforms"] @ to_gripper
         group["pregrasp_transforms"].attrs["frame"] = PREGRASP
         group["joints"] = found["joints"]
         group["joints"].attrs["names"] = info["joint_names"]
@@ -596,6 +608,24 @@ def write_acronym(path, run, hand, found, *, mesh_file, urdf_file, standoff, ver
         qualities["physics_success"].attrs["meaning"] = "1 held, 0 not held, NaN unchecked"
         qualities["robust_fc"] = found["robust_fc"]
         qualities["robust_fc"].attrs["meaning"] = "fraction of noisy copies in force closure, NaN unchecked"
+
+
+def gripper_info(info, frame):
+    """:func:`hand_info` ``info`` with ``approach``, ``wrap`` and ``grasp_centre`` in the frame
+    of a file's gripper, T_gripper_base ``frame`` (4, 4) (the identity: unchanged)."""
+    rotation, shift = frame[:3, :3], frame[:3, 3]
+    moved = {key: (rotation @ info[key]).tolist() for key in ("approach", "wrap")}
+    return {**info, **moved, "grasp_centre": (rotation @ info["grasp_centre"] + shift).tolist()}
+
+
+def gripper_configuration(hand, gripper):
+    """A file's ``gripper/configuration``: the open hand; ACRONYM's ``panda`` (1,) the opening of
+    each finger (m), every other hand (J,) its default preshape in ``joint_names`` order."""
+    from .kinematics import hand_model
+
+    opened = hand.preshape()
+    joints = [float(opened[joint]) for joint in hand_model(hand).joints]
+    return np.array(joints[:1] if gripper in GRIPPER_FRAMES else joints, np.float64)
 
 
 def export(runs, out, *, fmt, standoff=0.05, hands=(), progress=None):
@@ -696,7 +726,8 @@ def read_grasps(path):
         ``joints`` and ``pregrasp_joints`` (n, J) float64; ``joint_names`` (J,) tuple;
         ``outcome``, ``planner``, ``sphere_class``, ``preshape`` (n,) str; ``trial`` (n,)
         int64; ``epsilon``, ``physics_success`` (1/0/NaN), ``robust_fc`` (NaN unchecked),
-        ``approach_m`` (n,) float64; ``force_closure`` (n,) bool; ``hand`` (its name),
+        ``approach_m`` (n,) float64; ``force_closure`` (n,) bool; ``hand`` (its name: ``franka``
+        for a file's ``panda``, whose poses are turned back into the hand's base frame),
         ``urdf`` and ``object_file`` (absolute paths), ``scale``, ``standoff_m``, ``skipped``;
         ``vertices`` (v, 3) float64 m and ``faces`` (f, 3) int64: the simulated mesh (the HDF5
         file's own copy; from JSON, the object file times the scale).
@@ -746,8 +777,13 @@ def read_grasps(path):
             found[key] = np.array(group[key].asstr()[()], dtype=str)
         for key in ("epsilon", "force_closure", "physics_success", "robust_fc"):
             found[key] = qualities[key][()]
+        hand_name = gripper = h5["gripper/type"].asstr()[()]
+        if gripper in GRIPPER_FRAMES:  # back to the hand's URDF base frame, exactly
+            hand_name, frame = GRIPPER_FRAMES[gripper]
+            for key in ("transforms", "pregrasp_transforms"):
+                found[key] = found[key] @ frame
         found.update(
-            hand=h5["gripper/type"].asstr()[()],
+            hand=hand_name,
             urdf=str(path.parent / h5["gripper/urdf"].asstr()[()]),
             object_file=str(path.parent / h5["object/file"].asstr()[()]),
             scale=float(h5["object/scale"][()]),

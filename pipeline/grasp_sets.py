@@ -38,6 +38,11 @@ GRIPPER_FRAMES = {
 #: dataset gripper names of the built-in hands that have one
 DATASET_GRIPPER = {hand: gripper for gripper, (hand, _) in GRIPPER_FRAMES.items()}
 LABEL = "grasps/qualities/flex/object_in_gripper"
+#: an exported file's frame attribute for a dataset gripper's frame (the others: the URDF base frame)
+DATASET_FRAMES = {
+    "panda": "ACRONYM's Panda gripper frame: approach +z, fingers along +-x; the franka URDF's base frame "
+    "(panda_hand, the same origin) is it turned +90 deg about z: T_gripper_base"
+}
 RIGID_TOLERANCE = 1e-6  # per entry of R^T R - I, and of the last row
 
 
@@ -86,6 +91,25 @@ def resolve_hand(path, gripper, hands=()):
     raise BadInputError(
         f"{path}: unknown gripper/type {gripper!r} (known: {known}; a hand of your own: --hand SPEC named {gripper!r})"
     )
+
+
+def rigid_inverse(transform):
+    """The inverse (4, 4) of a rigid ``transform`` (4, 4): exact for an integer rotation and translation."""
+    transform = np.asarray(transform, np.float64)
+    inverse = np.eye(4)
+    inverse[:3, :3] = transform[:3, :3].T
+    inverse[:3, 3] = -(transform[:3, :3].T @ transform[:3, 3])
+    return inverse
+
+
+def dataset_frame(hand):
+    """(``gripper/type``, T_gripper_base (4, 4)) of ``hand`` in a grasp file: a built-in hand
+    with a dataset gripper (franka: ACRONYM's ``panda``) in that gripper's frame, every other
+    hand under its own name in its URDF base frame (the identity)."""
+    gripper = DATASET_GRIPPER.get(hand.name)
+    if gripper is None:
+        return hand.name, np.eye(4)
+    return gripper, GRIPPER_FRAMES[gripper][1]
 
 
 def check_rigid(path, transforms):

@@ -12,7 +12,12 @@ import trimesh
 
 from pipeline.__main__ import main
 from pipeline.evaluate import confusion, roc_auc
+from pipeline.export import replay_file
 from pipeline.grasp_sets import GRIPPER_FRAMES, read_grasp_set
+from pipeline.hands import get_hand
+from pipeline.kinematics import hand_model, link_poses
+from pipeline.params import CheckParams, Params, SampleParams, SimulateParams
+from pipeline.plan import run_chain, summary, write_plan
 
 #: ACRONYM's Panda frame over a 4 cm cube centred at the origin: approach +z pointing down
 #: (-z world), fingers along +-x (world x), its grasp point 105 mm along +z on the cube's centre
@@ -37,6 +42,25 @@ def write_acronym(path, transforms, labels=None, *, extents=(0.04, 0.04, 0.04), 
         if labels is not None:
             h5["grasps/qualities/flex/object_in_gripper"] = np.asarray(labels, np.int64)
     return path
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    """``plan`` on the 10 x 6 x 2 cm box with franka and parallel_jaw (4 spheres, 16 baseline
+    trials each), then ``export --format acronym``: {hand: exported HDF5 file}."""
+    hands = ["franka", "parallel_jaw"]
+    params = Params(
+        sample=SampleParams(count=4000),
+        simulate=SimulateParams(spheres_per_object=4, baseline_trials=16, workers=1),
+        checks=CheckParams(trials=0),
+    )
+    artefacts, timings = run_chain("primitive:box", params, seed=3, hands=hands, simulate=True, workers=1)
+    root = tmp_path_factory.mktemp("round_trip")
+    write_plan(
+        root / "plan", artefacts, summary(artefacts, timings, source="primitive:box", scale=1.0, seed=3, hands=hands)
+    )
+    main(["export", str(root / "plan"), "--format", "acronym", "--out", str(root / "export")])
+    return {hand: root / "export" / f"box-1.0-{hand}.h5" for hand in hands}
 
 
 def evaluate(path, out, *extra):
@@ -84,6 +108,52 @@ def test_the_panda_frame_is_the_franka_base_turned_90_degrees_about_the_approach
     labels = evaluate(path, tmp_path / "out")
     assert labels.outcome.tolist() == ["force_closure", "collision"]
     assert labels.physics_success.tolist() == [True, False]
+
+
+@pytest.mark.parametrize("hand", ["franka", "parallel_jaw"])
+def test_plan_export_evaluate_gives_back_every_trials_outcome(exported, tmp_path, hand):
+    """Every exported grasp, closed in place from its file's pose and open joints, ends as its
+    trial did: the same outcome, joints and epsilon, bit for bit (the pose moves through the
+    gripper frame and back exactly); the agreement with the file's label (the recorded force
+    closure) is therefore perfect."""
+    path = exported[hand]
+    labels = evaluate(path, tmp_path / "out")
+    with h5py.File(path) as h5:
+        recorded = h5["grasps/outcome"].asstr()[()].tolist()
+        epsilon, joints = h5["grasps/qualities/epsilon"][()], h5["grasps/joints"][()]
+    assert len(labels) == len(recorded) >= 20
+    assert {"force_closure", "no_force_closure"} <= set(recorded)  # both kinds tried
+    assert labels.outcome.tolist() == recorded
+    np.testing.assert_array_equal(labels.epsilon, epsilon)
+    np.testing.assert_array_equal(np.stack(labels.joints), joints)
+    found = json.loads((tmp_path / "out" / "agreement.json").read_text())
+    assert found["verdicts"]["force_closure"]["balanced_accuracy"] == 1.0
+
+
+def test_franka_is_exported_as_acronyms_panda_with_the_fingers_along_x(exported):
+    """The franka file holds gripper/type "panda", configuration [0.04] (each finger's opening)
+    and poses in ACRONYM's frame: each closed finger's link origin, seen from the file's gripper
+    frame, lies on the x axis at its joint value, one finger each side (pybullet's panda_hand moves them
+    along its y), 58.4 mm along the approach +z."""
+    with h5py.File(exported["franka"]) as h5:
+        assert h5["gripper/type"].asstr()[()] == "panda"
+        assert h5["gripper/configuration"][()].tolist() == [0.04]
+        transforms, joints = h5["grasps/transforms"][()], h5["grasps/joints"][()]
+        base = h5["grasps/transforms"][()] @ h5["gripper/T_gripper_base"][()]
+    model = hand_model(get_hand("franka"))
+    fingers = [model.links.index(name) for name in ("panda_leftfinger", "panda_rightfinger")]
+    links = link_poses(model, base, joints)[:, fingers]
+    in_gripper = np.linalg.inv(transforms)[:, None] @ links  # (n, 2, 4, 4) T_gripper_finger
+    origins = in_gripper[..., :3, 3]
+    np.testing.assert_allclose(origins[..., 1], 0.0, atol=1e-12)
+    # the left finger's joint opens it along the base's +y, the gripper's -x; the right one's along +x
+    np.testing.assert_allclose(origins[..., 0], joints * [-1.0, 1.0], atol=1e-12)
+    np.testing.assert_allclose(origins[..., 2], 0.0584, atol=1e-12)
+    # the project's own reader turns them back into the franka's base frame, bit for bit
+    found, results = replay_file(exported["franka"], **SimulateParams().world_settings())
+    assert found["hand"] == "franka"
+    np.testing.assert_array_equal(found["transforms"], base)
+    assert [result.outcome for result in results] == list(found["outcome"])
 
 
 def test_labels_do_not_depend_on_the_sample_or_the_workers(tmp_path):
