@@ -161,7 +161,7 @@ def main(argv=None):
     )
     bench.add_argument(
         "--only",
-        choices=("medial", "symmetry", "trials", "checks", "recording", "batch"),
+        choices=("medial", "symmetry", "trials", "checks", "evaluate", "recording", "batch"),
         default=None,
         help="run one table (default: all)",
     )

@@ -66,7 +66,7 @@ def run_bench(
     *, sizes=(20000, 100000, 200000), repeats=3, json_path=None, trials=512, reference_trials=60, only=None, out=print
 ):
     """Print (and optionally save) the benchmark tables (``only``: one of medial, symmetry,
-    trials, checks, recording, batch); returns {table: rows}."""
+    trials, checks, evaluate, recording, batch); returns {table: rows}."""
     tables = {}
     if only in (None, "medial"):
         tables["medial"] = run_medial_bench(sizes=sizes, repeats=repeats, out=out)
@@ -79,6 +79,9 @@ def run_bench(
         out("")
     if only in (None, "checks"):
         tables["checks"] = run_check_bench(out=out)
+        out("")
+    if only in (None, "evaluate"):
+        tables["evaluate"] = run_evaluate_bench(out=out)
         out("")
     if only in (None, "recording"):
         tables["recording"] = run_recording_bench(repeats=repeats, out=out)
@@ -371,6 +374,75 @@ def run_check_bench(*, trials=256, physics=100, robust=32, samples=16, out=print
             f"{held['force_closure']}, {held['other']}"
         )
     out("target: <= 50 ms of CPU per physics check")
+    return rows
+
+
+def run_evaluate_bench(*, grasps=64, out=print):
+    """``evaluate``'s labelling beside plain trials, one core, on the bench's duck: per hand,
+    the closed poses and open joints of the first ``grasps`` MAT trials that closed (what an
+    export of them holds) labelled by :class:`pipeline.evaluate.Labeller` at the default params
+    (closed in place, ``checks.robust_samples`` noisy copies, pybullet's lift-and-shake of those
+    that closed): grasps/s with every verdict and with the close in place alone, beside the
+    trials/s of the same candidates. Returns the rows."""
+    from types import SimpleNamespace
+
+    from scipy.spatial.transform import Rotation
+
+    from .evaluate import CLOSED, Labeller, verdict_settings
+    from .physics import decompose
+
+    artefacts, faces = trial_bench_chain()
+    surface, symmetry = artefacts["sample"], artefacts["classify"]
+    params = Params()
+    settings, physics, robust = verdict_settings(SimpleNamespace(friction=None, mass_kg=None), params)
+    parts = decompose(surface).parts
+    out(
+        f"evaluate on the duck ({faces} triangles), one core: {grasps} closed MAT grasps per hand, "
+        f"{robust['samples']} noisy copies each, the physics check on those that close"
+    )
+    out(f"{'hand':13} {'trials/s':>9} {'in place/s':>11} {'evaluate/s':>11} {'ms/grasp':>9}  outcomes")
+    rows = []
+    for name, hand in HANDS.items():
+        _, targets, engine = _warm_engine(surface, symmetry, hand, 4 * grasps, settings)
+        start = time.perf_counter()
+        results = engine.run(*targets)
+        trial_rate = len(results) / (time.perf_counter() - start)
+        closed = [(result, preshape) for result, preshape in zip(results, targets[3]) if result.outcome in CLOSED]
+        closed = closed[:grasps]
+        base = np.tile(np.eye(4), (len(closed), 1, 1))
+        base[:, :3, :3] = Rotation.from_quat([result.base_orientation for result, _ in closed]).as_matrix()
+        base[:, :3, 3] = [result.base_position for result, _ in closed]
+        joints = engine.model.joints
+        open_joints = np.array([[hand.preshape(preshape)[joint] for joint in joints] for _, preshape in closed])
+        labeller = Labeller(
+            surface.vertices, surface.faces, hand, parts, settings=settings, physics=physics, robust=robust, seed=0
+        )
+        try:
+            labeller.engine.close_in_place(base[:2], open_joints[:2])  # numba's first calls: start-up
+            start = time.perf_counter()
+            labeller.engine.close_in_place(base, open_joints)
+            in_place_rate = len(closed) / (time.perf_counter() - start)
+            start = time.perf_counter()
+            table = labeller.label(np.arange(len(closed)), base, open_joints)
+            evaluate_rate = len(closed) / (time.perf_counter() - start)
+        finally:
+            labeller.close()
+        outcomes = dict(Counter(table.outcome))
+        rows.append(
+            dict(
+                hand=name,
+                grasps=len(closed),
+                trials_per_s=round(trial_rate, 1),
+                in_place_per_s=round(in_place_rate, 1),
+                evaluate_per_s=round(evaluate_rate, 2),
+                ms_per_grasp=round(1000 / evaluate_rate, 1),
+                outcomes=outcomes,
+            )
+        )
+        out(
+            f"{name:13} {trial_rate:9.1f} {in_place_rate:11.1f} {evaluate_rate:11.2f} {1000 / evaluate_rate:9.1f}  "
+            + ", ".join(f"{key} {value}" for key, value in sorted(outcomes.items()))
+        )
     return rows
 
 
