@@ -302,7 +302,8 @@ def main(argv=None):
         help="label a grasp file (ACRONYM's HDF5, or an export) with this project's verdicts",
         description="Place the hand at each grasp's pose, open at the file's configuration, close it where it is\n"
         "(no retreat, no approach), and label it: outcome, force closure, epsilon, robust force closure and\n"
-        "pybullet's lift-and-shake, at the file's object mass and friction. Writes DIR/labels.parquet, the\n"
+        "the lift-and-shake on pybullet and MuJoCo (from the closed pose and from the open hand closing on\n"
+        "the free object), at the file's object mass and friction. Writes DIR/labels.parquet, the\n"
         "file with the labels under grasps/qualities/medial_grasp/, and, when the file has its own labels\n"
         "(grasps/qualities/flex/object_in_gripper), DIR/agreement.json (see docs/evaluate.md).",
         examples=[
@@ -320,6 +321,12 @@ def main(argv=None):
     evaluate.add_argument("--mesh", default=None, help="the object's mesh, instead of the file's object/file")
     evaluate.add_argument("--sample", type=int, default=None, help="label a seeded sample of N grasps (default: all)")
     evaluate.add_argument("--seed", type=int, default=None, help="overrides the params seed (default: params seed)")
+    evaluate.add_argument(
+        "--engine",
+        choices=("pybullet", "mujoco", "both"),
+        default=None,
+        help="the lift-and-shake engine(s) (default: params checks.engine)",
+    )
     evaluate.add_argument(
         "--workers", type=int, default=None, help="processes (default: params simulate.workers; 0 = every core)"
     )
@@ -542,7 +549,7 @@ def _evaluate(args):
             f"({DATASET_GRIPPER.get(grasp_set.hand.name, grasp_set.hand.name)}), not hand {given.name!r}"
         )
     rows = sample_rows(len(grasp_set), args.sample, seed)
-    settings, physics, robust = verdict_settings(grasp_set, params)
+    settings, physics, robust = verdict_settings(grasp_set, params, engine=args.engine)
     workers = default_workers(params.simulate.workers if args.workers is None else args.workers)
     print(
         f"evaluate {args.grasps}: {len(rows)} of {len(grasp_set)} grasps, hand {grasp_set.hand.name} "
@@ -574,13 +581,15 @@ def _evaluate(args):
         "mass_kg": grasp_set.mass_kg,
         "mass_rule": "the file's object/mass"
         if grasp_set.mass_kg is not None
-        else "mesh volume x checks.density_kg_m3",
+        else "mesh volume x checks.density_kg_m3, at most checks.payload_kg",
+        "engines": sorted(physics),
         "robust_samples": robust["samples"],
     }
-    if grasp_set.mass_kg is None and physics is not None:
-        from .physics import mesh_volume
+    if grasp_set.mass_kg is None:
+        from .physics import PhysicsSettings, object_mass
 
-        meta["mass_kg"] = physics.density_kg_m3 * mesh_volume(grasp_set.vertices, grasp_set.faces)
+        checked = PhysicsSettings(**params.checks.physics_settings(settings["mu"]))
+        meta["mass_kg"] = object_mass(checked, grasp_set.vertices, grasp_set.faces)
     written = write_labels(out, grasp_set, table, found, meta=meta)
     counts = table.outcome.value_counts().to_dict()
     print(f"outcomes: {', '.join(f'{name} {count}' for name, count in counts.items())}")

@@ -313,12 +313,14 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
 
 
 def run_check_bench(*, trials=256, physics=100, robust=32, samples=16, out=print):
-    """The checks of issue 15 beside plain trials, one core, on the bench's duck: per hand,
-    ``trials`` random MAT candidates through the engine (trials/s), the physics check of up to
-    ``physics`` of those that closed on the duck (checks/s; and how many held, split by force
-    closure), and robust force closure of the first ``robust`` (``samples`` noisy copies each:
+    """The checks beside plain trials, one core, on the bench's duck: per hand, ``trials`` random
+    MAT candidates through the engine (trials/s), pybullet's physics check of up to ``physics``
+    of those that closed on the duck (checks/s; and how many held, split by force closure),
+    MuJoCo's of the same from the closed pose and from the open hand (checks/s, CPU ms a check,
+    held), and robust force closure of the first ``robust`` (``samples`` noisy copies each:
     copies/s). Also the duck's V-HACD time. Returns the rows."""
     from .grasp_checks import CLOSED
+    from .mujoco_check import MujocoCheck
     from .physics import PhysicsCheck, decompose
     from .robust import robust_force_closure
 
@@ -333,7 +335,8 @@ def run_check_bench(*, trials=256, physics=100, robust=32, samples=16, out=print
         f"{trials} trials, physics on <= {physics} closed hands, {samples} noisy copies of {robust} trials"
     )
     out(
-        f"{'hand':13} {'trials/s':>9} {'checks/s':>9} {'ms/check':>9} {'copies/s':>9}  held: force closure, other closed"
+        f"{'hand':13} {'trials/s':>9} {'checks/s':>9} {'ms/check':>9} {'copies/s':>9}  held: force closure, other closed; "
+        "MuJoCo closed / open start: checks/s, CPU ms a check, held"
     )
     rows = []
     for name, hand in HANDS.items():
@@ -341,21 +344,32 @@ def run_check_bench(*, trials=256, physics=100, robust=32, samples=16, out=print
         start = time.perf_counter()
         results = engine.run(*targets)
         trial_rate = len(results) / (time.perf_counter() - start)
-        closed = [result for result in results if result.outcome in CLOSED][:physics]
+        closed = [(r, preshape) for r, preshape in zip(results, targets[3]) if r.outcome in CLOSED][:physics]
         check = PhysicsCheck(surface.vertices, surface.faces, hand, engine.model, parts=parts.parts)
         try:
             start = time.perf_counter()
-            verdicts = [check.check(r.base_position, r.base_orientation, r.joint_positions) for r in closed]
+            verdicts = [check.check(r.base_position, r.base_orientation, r.joint_positions) for r, _ in closed]
             check_rate = len(closed) / max(time.perf_counter() - start, 1e-9)
         finally:
             check.close()
+        mujoco = MujocoCheck(surface.vertices, surface.faces, hand, engine.model, parts=parts.parts)
+        mujoco_rows = {}
+        for start in ("closed", "open"):
+            begin, cpu = time.perf_counter(), time.process_time()
+            count_held = 0
+            for r, preshape in closed:
+                opened = hand.preshape(preshape)
+                keyword = {"open_joints": [opened[j] for j in engine.model.joints]} if start == "open" else {}
+                count_held += mujoco.check(r.base_position, r.base_orientation, r.joint_positions, **keyword).success
+            seconds, cpu = max(time.perf_counter() - begin, 1e-9), time.process_time() - cpu
+            mujoco_rows[start] = (len(closed) / seconds, 1000 * cpu / max(len(closed), 1), count_held)
         seeds = np.random.SeedSequence(0).spawn(robust)
         start = time.perf_counter()
         robust_force_closure(engine, *(values[:robust] for values in targets), seeds, samples=samples)
         copy_rate = robust * samples / (time.perf_counter() - start)
         held = {
-            kind: f"{sum(v.success for v, r in zip(verdicts, closed) if (r.outcome == 'force_closure') == fc)}/"
-            f"{sum((r.outcome == 'force_closure') == fc for r in closed)}"
+            kind: f"{sum(v.success for v, (r, _) in zip(verdicts, closed) if (r.outcome == 'force_closure') == fc)}/"
+            f"{sum((r.outcome == 'force_closure') == fc for r, _ in closed)}"
             for kind, fc in (("force_closure", True), ("other", False))
         }
         rows.append(
@@ -367,11 +381,17 @@ def run_check_bench(*, trials=256, physics=100, robust=32, samples=16, out=print
                 copies_per_s=round(copy_rate, 1),
                 held=held,
                 vhacd_s=round(vhacd, 2),
+                **{
+                    f"mujoco_{start}_{key}": round(value, 2)
+                    for start, values in mujoco_rows.items()
+                    for key, value in zip(("checks_per_s", "cpu_ms_per_check", "held"), values)
+                },
             )
         )
         out(
             f"{name:13} {trial_rate:9.1f} {check_rate:9.1f} {rows[-1]['ms_per_check'] or '-':>9} {copy_rate:9.1f}  "
-            f"{held['force_closure']}, {held['other']}"
+            f"{held['force_closure']}, {held['other']}; "
+            + " / ".join(f"{rate:.1f}/s {ms:.1f} ms {count}" for rate, ms, count in mujoco_rows.values())
         )
     out("target: <= 50 ms of CPU per physics check")
     return rows

@@ -11,12 +11,16 @@ Per grasp of a :class:`pipeline.grasp_sets.GraspSet`:
    ``checks`` params' pose and friction noise about the hand's grasp centre, each backed out
    until clear and closed there (a robot with that error stops where it meets the object),
    graded at its own friction: ``robust_fc`` and ``robust_epsilon``;
-3. pybullet's lift-and-shake (:class:`pipeline.physics.PhysicsCheck`) of a hand that closed on
-   the object (``force_closure`` or ``no_force_closure``; the rest are ``no_grasp``):
-   ``physics_outcome``, ``physics_success``, ``physics_slip_m``, ``physics_turn_rad``.
+3. the lift-and-shake of the chosen engines (``checks.engine``, ``--engine``) of a hand that
+   closed on the object (``force_closure`` or ``no_force_closure``; the rest are ``no_grasp``):
+   pybullet's (:class:`pipeline.physics.PhysicsCheck`: ``physics_outcome``,
+   ``physics_success``, ``physics_slip_m``, ``physics_turn_rad``), MuJoCo's from the closed pose
+   (:class:`pipeline.mujoco_check.MujocoCheck`: ``mujoco_*``) and from the open hand closing on
+   the free object (``mujoco_open_*``); a check that did not run is "" / NaN.
 
 The object's mass and friction are the file's (``object/mass``, ``object/friction``); without
-them, its mesh volume times ``checks.density_kg_m3`` and ``simulate.mu``. The friction is that of
+them, its mesh volume times ``checks.density_kg_m3``, at most ``checks.payload_kg`` (the
+graspable-mass rule of the checks), and ``simulate.mu``. The friction is that of
 every verdict (force closure and the physics check alike). Seeds: grasp ``i``'s copies come from
 ``SeedSequence([seed, i])``, so its labels do not depend on the sample, the chunks or the workers.
 """
@@ -35,6 +39,8 @@ from .simulation import GraspEngine, TrialResult
 VERDICTS = {
     "force_closure": "force closure",
     "physics_success": "pybullet lift-and-shake held",
+    "mujoco_success": "MuJoCo lift-and-shake held",
+    "mujoco_open_success": "MuJoCo held, closed on free object",
     "robust_fc": "robust force closure >= 0.5",
 }
 #: scores whose ROC AUC against the labels is reported
@@ -112,8 +118,9 @@ class Labeller:
         The object's convex parts (the physics check's body).
     settings : dict
         Trial settings (:class:`pipeline.simulation.TrialSettings` fields), ``mu`` the object's.
-    physics : PhysicsSettings or None
-        None: no physics check.
+    physics : dict
+        The lift-and-shake engines to run: ``pybullet`` (a PhysicsSettings) and/or ``mujoco``
+        (a MujocoSettings); empty: none.
     robust : dict
         ``samples``, ``pose_sigma_m``, ``angle_sigma_rad``, ``mu_sigma``.
     seed : int
@@ -124,15 +131,23 @@ class Labeller:
 
         self.engine = InPlaceEngine(SimpleNamespace(vertices=vertices, faces=faces), hand, **settings)
         self.hand, self.robust, self.seed = hand, robust, seed
-        self.check = None
-        if physics is not None:
+        self.checks = {}
+        if "pybullet" in physics:
             from .physics import PhysicsCheck
 
-            self.check = PhysicsCheck(vertices, faces, hand, self.engine.model, parts=parts, settings=physics)
+            self.checks["pybullet"] = PhysicsCheck(
+                vertices, faces, hand, self.engine.model, parts=parts, settings=physics["pybullet"]
+            )
+        if "mujoco" in physics:
+            from .mujoco_check import MujocoCheck
+
+            self.checks["mujoco"] = MujocoCheck(
+                vertices, faces, hand, self.engine.model, parts=parts, settings=physics["mujoco"]
+            )
 
     def close(self):
-        if self.check is not None:
-            self.check.close()
+        for check in self.checks.values():
+            check.close()
 
     def label(self, rows, base, open_joints):
         """The labels table of grasps ``rows`` (n,) (their numbers in the file: the seeds) at
@@ -181,15 +196,23 @@ class Labeller:
             )
         else:
             frame["robust_fc"] = frame["robust_epsilon"] = np.nan
-        physics = [("no_grasp" if self.check else "", np.nan, np.nan)] * len(results)
-        for k, result in enumerate(results):
-            if self.check is not None and result.outcome in CLOSED:
-                found = self.check.check(result.base_position, result.base_orientation, result.joint_positions)
+        from .grasp_checks import PHYSICS_CHECKS
+
+        for check, engines in PHYSICS_CHECKS.items():
+            engine = self.checks.get(engines[0])
+            physics = [("no_grasp" if engine else "", np.nan, np.nan)] * len(results)
+            start = {}
+            for k, result in enumerate(results):
+                if engine is None or result.outcome not in CLOSED:
+                    continue
+                if check == "mujoco_open":
+                    start = {"open_joints": open_joints[k]}
+                found = engine.check(result.base_position, result.base_orientation, result.joint_positions, **start)
                 physics[k] = (found.outcome, found.slip_m, found.turn_rad)
-        frame["physics_outcome"] = [outcome for outcome, _, _ in physics]
-        frame["physics_success"] = frame.physics_outcome == "held"
-        frame["physics_slip_m"] = np.array([slip for _, slip, _ in physics], float)
-        frame["physics_turn_rad"] = np.array([turn for _, _, turn in physics], float)
+            frame[f"{check}_outcome"] = [outcome for outcome, _, _ in physics]
+            frame[f"{check}_success"] = frame[f"{check}_outcome"] == "held"
+            frame[f"{check}_slip_m"] = np.array([slip for _, slip, _ in physics], float)
+            frame[f"{check}_turn_rad"] = np.array([turn for _, _, turn in physics], float)
         return frame
 
 
@@ -311,8 +334,8 @@ def agreement(table):
     for column, meaning in VERDICTS.items():
         values = labelled[column]
         known = values.notna().to_numpy().copy()
-        if column == "physics_success":
-            known &= (labelled.physics_outcome != "").to_numpy()
+        if column.endswith("_success"):  # a lift-and-shake: where it ran
+            known &= (labelled[column.removesuffix("success") + "outcome"] != "").to_numpy()
         if not known.any():
             continue
         predicted = values.to_numpy(float)[known] >= 0.5
@@ -345,22 +368,29 @@ def agreement_text(found):
     return lines
 
 
-def verdict_settings(grasp_set, params):
-    """(trial settings dict, PhysicsSettings or None, robust dict) of ``params`` for the object
-    of ``grasp_set``: its friction and mass where the file states them."""
+def verdict_settings(grasp_set, params, *, engine=None):
+    """(trial settings dict, physics dict, robust dict) of ``params`` for the object of
+    ``grasp_set``: its friction and mass where the file states them (its mass as it is, not
+    capped at ``checks.payload_kg``). The physics dict holds the settings of the lift-and-shake
+    engines to run (:class:`Labeller`): ``engine`` (``pybullet``, ``mujoco`` or ``both``;
+    default ``checks.engine``), none with ``checks.physics`` false."""
     import dataclasses
 
-    from .physics import PhysicsSettings, mesh_volume
+    from .mujoco_check import MujocoSettings
+    from .physics import mesh_volume
 
     mu = grasp_set.friction if grasp_set.friction is not None else params.simulate.mu
     settings = {**params.simulate.world_settings(), "mu": mu}
     checks = params.checks
-    physics = None
+    if grasp_set.mass_kg is not None:
+        density = grasp_set.mass_kg / mesh_volume(grasp_set.vertices, grasp_set.faces)
+        checks = dataclasses.replace(checks, density_kg_m3=density, payload_kg=-1.0)
+    engine = checks.engine if engine is None else engine
+    mujoco = MujocoSettings.from_params(checks, mu)
+    physics = {}
     if checks.physics:
-        physics = PhysicsSettings(**checks.physics_settings(mu))
-        if grasp_set.mass_kg is not None:
-            density = grasp_set.mass_kg / mesh_volume(grasp_set.vertices, grasp_set.faces)
-            physics = dataclasses.replace(physics, density_kg_m3=density)
+        physics = {name: settings_of for name, settings_of in (("pybullet", mujoco.physics), ("mujoco", mujoco))}
+        physics = {name: value for name, value in physics.items() if engine in (name, "both")}
     robust = {
         "samples": checks.robust_samples,
         "pose_sigma_m": checks.pose_sigma_m,
@@ -376,10 +406,14 @@ QUALITY_COLUMNS = (
     "epsilon",
     "robust_fc",
     "robust_epsilon",
-    "physics_success",
-    "physics_slip_m",
-    "physics_turn_rad",
+    *(
+        f"{check}_{column}"
+        for check in ("physics", "mujoco", "mujoco_open")
+        for column in ("success", "slip_m", "turn_rad")
+    ),
 )
+#: the verdicts' outcome strings written beside them
+OUTCOME_COLUMNS = ("outcome", "physics_outcome", "mujoco_outcome", "mujoco_open_outcome")
 
 
 def write_labels(out, grasp_set, table, found, *, meta):
@@ -398,13 +432,14 @@ def write_labels(out, grasp_set, table, found, *, meta):
     out, source = Path(out), Path(grasp_set.path)
     count = len(grasp_set)
     full = pd.DataFrame(index=np.arange(count))
-    for column in ("outcome", "physics_outcome"):
+    for column in OUTCOME_COLUMNS:
         full[column] = ""
         full.loc[table.grasp.to_numpy(), column] = table[column].to_numpy()
     for column in QUALITY_COLUMNS:
         full[column] = np.nan
         full.loc[table.grasp.to_numpy(), column] = table[column].to_numpy(float)
-    full.loc[table.grasp.to_numpy()[table.physics_outcome.to_numpy() == ""], "physics_success"] = np.nan
+    for check in ("physics", "mujoco", "mujoco_open"):  # a check that did not run says nothing
+        full.loc[table.grasp.to_numpy()[table[f"{check}_outcome"].to_numpy() == ""], f"{check}_success"] = np.nan
     written = [out / "labels.parquet"]
     write_table(written[0], table)
     annotated = out / source.name
@@ -426,7 +461,7 @@ def write_labels(out, grasp_set, table, found, *, meta):
                     del qualities["medial_grasp"]
                 group = qualities.create_group("medial_grasp")
                 group["labelled"] = np.isin(np.arange(count), table.grasp.to_numpy())
-                for column in ("outcome", "physics_outcome"):
+                for column in OUTCOME_COLUMNS:
                     group[column] = np.array(full[column].tolist(), dtype=h5py.string_dtype())
                 for column in QUALITY_COLUMNS:
                     group[column] = full[column].to_numpy(float)

@@ -470,14 +470,6 @@ def hand_info(hand):
     }
 
 
-def hand_urdf_text(hand):
-    """A URDF of the hand alone, rooted at its base frame (a file hand's mesh paths made absolute)."""
-    from .hands import urdf_text
-    from .urdf import subtree_text
-
-    return urdf_text(hand) if hand.urdf is None else subtree_text(hand.urdf, hand.base_link)
-
-
 def obj_bytes(vertices, faces):
     """Wavefront OBJ text of a triangle mesh, every coordinate to 17 digits (read back exactly)."""
     import io
@@ -648,6 +640,7 @@ def export(runs, out, *, fmt, standoff=0.05, hands=(), progress=None):
     list of (Path, int): each file and its number of grasps
     """
     from .artefacts import atomic_write
+    from .hands import hand_urdf_text
 
     if fmt not in FORMATS:
         raise BadParamsError(f"export: unknown format {fmt!r} (use one of: {', '.join(FORMATS)})")

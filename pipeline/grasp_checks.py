@@ -3,10 +3,12 @@ holding?
 
 For a seeded sample of each hand's trials per planner (``checks.trials``; -1 = every trial):
 
-- the physics check (:class:`pipeline.physics.PhysicsCheck`) of every sampled trial that ended
-  with a closed hand on the object (outcome ``force_closure`` or ``no_force_closure``); the
-  others (``no_contact``, ``collision``, ``step_cap``, ``error``) closed on nothing and are
-  ``no_grasp`` without a simulation; a check pybullet refuses is ``error``;
+- the lift-and-shake of ``checks.engine`` (pybullet's :class:`pipeline.physics.PhysicsCheck`,
+  MuJoCo's :class:`pipeline.mujoco_check.MujocoCheck` from the closed pose and from the open
+  hand, or both) of every sampled trial that ended with a closed hand on the object (outcome
+  ``force_closure`` or ``no_force_closure``); the others (``no_contact``, ``collision``,
+  ``step_cap``, ``error``) closed on nothing and are ``no_grasp`` without a simulation; a check
+  the engine refuses is ``error``;
 - robust force closure (:mod:`pipeline.robust`) of every sampled trial: ``robust_samples`` noisy
   copies of its candidate through the same trial engine (worker processes as the trials),
   each graded at its own friction.
@@ -17,11 +19,13 @@ copies depend neither on the other hands run with it nor on the workers or the s
 
 Table (``checks.parquet``): one row per checked trial; ``trial`` (its row in trials.parquet),
 ``planner``, ``hand``, ``outcome`` (the trial's), ``epsilon`` (the trial's),
-``physics_outcome`` (held, slipped, dropped, no_grasp, error; "" when the physics check is
-off), ``physics_success`` (held), ``physics_slip_m`` and ``physics_turn_rad`` (how far the
-object moved and turned relative to the hand; NaN without a simulation), ``robust_fc``
-(fraction of the copies in force closure) and ``robust_epsilon`` (their mean epsilon; NaN
-with ``robust_samples`` 0).
+per check (:data:`PHYSICS_CHECKS`: ``physics`` pybullet's, ``mujoco`` MuJoCo's from the
+closed pose, ``mujoco_open`` MuJoCo's from the open hand) ``<check>_outcome`` (held, slipped,
+dropped, no_grasp, error; "" when that check did not run), ``<check>_success`` (held),
+``<check>_slip_m`` and ``<check>_turn_rad`` (how far the object moved and turned relative to the
+hand; NaN without a simulation); ``mass_kg`` (the checked object's, :func:`pipeline.physics.object_mass`),
+``robust_fc`` (fraction of the copies in force closure) and ``robust_epsilon`` (their mean
+epsilon; NaN with ``robust_samples`` 0).
 """
 
 import zlib
@@ -30,19 +34,16 @@ import numpy as np
 import pandas as pd
 
 from .arrays import vectors
-from .errors import ArtefactError
+from .errors import ArtefactError, DegenerateGeometryError
 from .robust import perturbed_candidates, robust_scores
 from .trials import PLANNERS
 
+#: the lift-and-shake checks (column prefixes) and the ``checks.engine`` that runs each
+PHYSICS_CHECKS = {"physics": ("pybullet", "both"), "mujoco": ("mujoco", "both"), "mujoco_open": ("mujoco", "both")}
 #: the checks table's columns that :func:`with_checks` puts on the trials
-CHECK_COLUMNS = (
-    "physics_outcome",
-    "physics_success",
-    "physics_slip_m",
-    "physics_turn_rad",
-    "robust_fc",
-    "robust_epsilon",
-)
+CHECK_COLUMNS = tuple(
+    f"{check}_{column}" for check in PHYSICS_CHECKS for column in ("outcome", "success", "slip_m", "turn_rad")
+) + ("robust_fc", "robust_epsilon")
 PHYSICS_OUTCOMES = ("held", "slipped", "dropped", "no_grasp", "error")
 CLOSED = ("force_closure", "no_force_closure")  # trials that end with a closed hand on the object
 
@@ -70,10 +71,12 @@ def empty_checks():
             "hand": pd.Series(dtype=str),
             "outcome": pd.Series(dtype=str),
             "epsilon": pd.Series(dtype=float),
-            "physics_outcome": pd.Series(dtype=str),
-            "physics_success": pd.Series(dtype=bool),
-            **{name: pd.Series(dtype=float) for name in ("physics_slip_m", "physics_turn_rad")},
-            **{name: pd.Series(dtype=float) for name in ("robust_fc", "robust_epsilon")},
+            **{
+                f"{check}_{column}": pd.Series(dtype=kind)
+                for check in PHYSICS_CHECKS
+                for column, kind in (("outcome", str), ("success", bool), ("slip_m", float), ("turn_rad", float))
+            },
+            **{name: pd.Series(dtype=float) for name in ("mass_kg", "robust_fc", "robust_epsilon")},
         }
     )
 
@@ -98,8 +101,9 @@ def check_trials(surface, trial_table, parts, *, hands, seed, settings, workers=
     **checks
         The ``checks`` params (:class:`pipeline.params.CheckParams`; defaults for those left out).
     """
+    from .mujoco_check import MujocoSettings
     from .params import CheckParams
-    from .physics import PhysicsSettings
+    from .physics import PhysicsSettings, object_mass
     from .simulation import TrialSettings, torque_reference
     from .trials import run_trials
 
@@ -117,9 +121,11 @@ def check_trials(surface, trial_table, parts, *, hands, seed, settings, workers=
             picked.append((number, planner, rows[chosen], [trial_seeds[k] for k in chosen]))
     if not picked:
         return empty_checks()
-    total = sum(len(rows) for _, _, rows, _ in picked) * (int(physics) + robust_samples)
+    engines = [engine for engine in ("pybullet", "mujoco") if physics and params.engine in (engine, "both")]
+    total = sum(len(rows) for _, _, rows, _ in picked) * (len(engines) + robust_samples)
     trial_settings = TrialSettings(**settings)
     physics_settings = PhysicsSettings(**params.physics_settings(trial_settings.mu))
+    mujoco_settings = MujocoSettings.from_params(params, trial_settings.mu) if "mujoco" in engines else None
     step = (lambda done, _: progress(done, total)) if progress else None
     robust = {}
     if robust_samples:
@@ -171,65 +177,93 @@ def check_trials(surface, trial_table, parts, *, hands, seed, settings, workers=
                 "epsilon": table.epsilon.to_numpy(float),
             }
         )
-        if physics:
-            outcomes = _physics(surface, parts, hands[number], table, physics_settings, trial_settings, step)
-        else:
-            outcomes = [("", np.nan, np.nan)] * len(rows)
-        frame["physics_outcome"] = [outcome for outcome, _, _ in outcomes]
-        frame["physics_success"] = frame.physics_outcome == "held"
-        frame["physics_slip_m"] = np.array([slip for _, slip, _ in outcomes], float)
-        frame["physics_turn_rad"] = np.array([turn for _, _, turn in outcomes], float)
+        found = {check: [("", np.nan, np.nan)] * len(rows) for check in PHYSICS_CHECKS}
+        for engine in engines:
+            settings_of = physics_settings if engine == "pybullet" else mujoco_settings
+            found.update(
+                _physics(surface, parts, hands[number], table, settings_of, trial_settings, step, engine=engine)
+            )
+        for check, outcomes in found.items():
+            frame[f"{check}_outcome"] = [outcome for outcome, _, _ in outcomes]
+            frame[f"{check}_success"] = frame[f"{check}_outcome"] == "held"
+            frame[f"{check}_slip_m"] = np.array([slip for _, slip, _ in outcomes], float)
+            frame[f"{check}_turn_rad"] = np.array([turn for _, _, turn in outcomes], float)
+        frame["mass_kg"] = object_mass(physics_settings, surface.vertices, surface.faces)
         frame["robust_fc"] = [robust.get(row, (np.nan, np.nan))[0] for row in rows]
         frame["robust_epsilon"] = [robust.get(row, (np.nan, np.nan))[1] for row in rows]
         frames.append(frame)
     return pd.concat(frames, ignore_index=True)
 
 
-def _physics(surface, parts, hand, table, physics_settings, trial_settings, progress):
-    """(outcome, slip, turn) of each trial of ``table`` (one hand)."""
+def _physics(surface, parts, hand, table, settings, trial_settings, progress, *, engine):
+    """{check: [(outcome, slip, turn) of each trial of ``table`` (one hand)]} of ``engine``:
+    ``physics`` (pybullet, ``settings`` a PhysicsSettings) or ``mujoco`` and ``mujoco_open``
+    (MuJoCo, ``settings`` a MujocoSettings; the open start from the trial's preshape)."""
     from .bullet import pybullet
     from .kinematics import hand_model
-    from .physics import PhysicsCheck
 
+    checks = [name for name, engines in PHYSICS_CHECKS.items() if engines[0] == engine]
     closed = table.outcome.astype(str).isin(CLOSED).to_numpy()
-    outcomes = [("no_grasp", np.nan, np.nan)] * len(table)
+    found = {name: [("no_grasp", np.nan, np.nan)] * len(table) for name in checks}
     if not closed.any():
         if progress:
             progress(len(table), None)
-        return outcomes
+        return found
     model = hand_model(hand, spacing=trial_settings.link_point_spacing_m)
+    refused = (pybullet.error, DegenerateGeometryError)  # the object or the hand could not be built
     try:
-        check = PhysicsCheck(surface.vertices, surface.faces, hand, model, parts=parts.parts, settings=physics_settings)
-    except pybullet.error:  # the object or the hand could not be built: every check of it fails
-        outcomes = [("error", np.nan, np.nan) if closed[k] else outcome for k, outcome in enumerate(outcomes)]
+        if engine == "pybullet":
+            from .physics import PhysicsCheck
+
+            check = PhysicsCheck(surface.vertices, surface.faces, hand, model, parts=parts.parts, settings=settings)
+        else:
+            from .mujoco_check import MujocoCheck
+
+            check = MujocoCheck(surface.vertices, surface.faces, hand, model, parts=parts.parts, settings=settings)
+    except refused:  # every check of it fails
+        for name in checks:
+            found[name] = [("error", np.nan, np.nan) if closed[k] else row for k, row in enumerate(found[name])]
         check = None
     try:
         base, quaternion = vectors(table, "base"), table[[f"base_q{axis}" for axis in "xyzw"]].to_numpy(float)
         for k in np.flatnonzero(closed) if check else ():
-            try:
-                result = check.check(base[k], quaternion[k], np.asarray(table.joints.iloc[k], float))
-                outcomes[k] = (result.outcome, result.slip_m, result.turn_rad)
-            except pybullet.error:
-                outcomes[k] = ("error", np.nan, np.nan)
+            joints = np.asarray(table.joints.iloc[k], float)
+            starts = [{}]
+            if engine == "mujoco":
+                opened = hand.preshape(table.preshape.iloc[k])
+                starts.append({"open_joints": np.array([opened[joint] for joint in model.joints])})
+            for name, start in zip(checks, starts):
+                try:
+                    result = check.check(base[k], quaternion[k], joints, **start)
+                    found[name][k] = (result.outcome, result.slip_m, result.turn_rad)
+                except pybullet.error:
+                    found[name][k] = ("error", np.nan, np.nan)
     finally:
         if check:
             check.close()
     if progress:
         progress(len(table), None)
-    return outcomes
+    return found
 
 
 def summarise_checks(checks):
-    """``checked``, ``physics_success_rate`` (held of the checked trials; NaN if none or the
-    physics check was off), ``robust_fc`` (mean) and ``physics_outcomes`` counts of a checks
-    table (or a slice of it)."""
-    ran = checks[checks.physics_outcome != ""]
-    return {
-        "checked": int(len(checks)),
-        "physics_success_rate": float(ran.physics_success.mean()) if len(ran) else float("nan"),
-        "robust_fc": float(checks.robust_fc.mean()) if checks.robust_fc.notna().any() else float("nan"),
-        "physics_outcomes": {outcome: int((ran.physics_outcome == outcome).sum()) for outcome in PHYSICS_OUTCOMES},
-    }
+    """Of a checks table (or a slice of it): ``checked``; per lift-and-shake check
+    (:data:`PHYSICS_CHECKS`) ``<check>_success_rate`` (held of the trials it ran on; NaN if
+    none) and ``<check>_outcomes`` (counts); ``engines_agree`` (of the trials both pybullet's
+    and MuJoCo's closed-pose checks ran on, the share where they agree on held; NaN if none);
+    ``robust_fc`` (mean)."""
+    found = {"checked": int(len(checks))}
+    for check in PHYSICS_CHECKS:
+        ran = checks[checks[f"{check}_outcome"] != ""]
+        found[f"{check}_success_rate"] = float(ran[f"{check}_success"].mean()) if len(ran) else float("nan")
+    both = ((checks.physics_outcome != "") & (checks.mujoco_outcome != "")).to_numpy()
+    agree = checks.physics_success.to_numpy(bool)[both] == checks.mujoco_success.to_numpy(bool)[both]
+    found["engines_agree"] = float(agree.mean()) if both.any() else float("nan")
+    found["robust_fc"] = float(checks.robust_fc.mean()) if checks.robust_fc.notna().any() else float("nan")
+    for check in PHYSICS_CHECKS:
+        outcomes = checks[f"{check}_outcome"]
+        found[f"{check}_outcomes"] = {outcome: int((outcomes == outcome).sum()) for outcome in PHYSICS_OUTCOMES}
+    return found
 
 
 def summary(checks):
@@ -248,8 +282,8 @@ def summary(checks):
 
 def with_checks(trials, checks):
     """``trials`` (a copy) with the :data:`CHECK_COLUMNS` of ``checks`` (a checks table of the
-    same trials, or None) on the checked rows: an unchecked trial has ``physics_outcome`` ""
-    and missing values (``physics_success`` is a nullable boolean)."""
+    same trials, or None) on the checked rows: an unchecked trial (or one a check did not run
+    on) has ``<check>_outcome`` "" and missing values (``<check>_success`` is a nullable boolean)."""
     frame = trials.copy()
     checked = checks.set_index("trial") if checks is not None else empty_checks().set_index("trial")
     rows = checked.index.to_numpy()
@@ -261,6 +295,8 @@ def with_checks(trials, checks):
         raise ArtefactError("checks table: its trials are not those of the trials table (stale? rerun its check stage)")
     for column in CHECK_COLUMNS:
         frame[column] = checked[column].reindex(np.arange(len(frame))).to_numpy()
-    frame["physics_outcome"] = frame.physics_outcome.astype(object).fillna("").astype(str)
-    frame["physics_success"] = frame.physics_success.astype("boolean").where(frame.physics_outcome != "")
+    for check in PHYSICS_CHECKS:
+        outcome = frame[f"{check}_outcome"].astype(object).fillna("").astype(str)
+        frame[f"{check}_outcome"] = outcome
+        frame[f"{check}_success"] = frame[f"{check}_success"].astype("boolean").where(outcome != "")
     return frame

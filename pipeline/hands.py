@@ -325,6 +325,13 @@ def urdf_text(hand):
     return "\n".join(lines + ["</robot>", ""])
 
 
+def hand_urdf_text(hand):
+    """A URDF of the hand alone, rooted at its base frame (a file hand's mesh paths made absolute)."""
+    from .urdf import subtree_text
+
+    return urdf_text(hand) if hand.urdf is None else subtree_text(hand.urdf, hand.base_link)
+
+
 def spec_dict(hand, urdf_name):
     """The YAML-ready spec of ``hand`` referring to the URDF file ``urdf_name``."""
     spec = {

@@ -35,7 +35,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .errors import DegenerateGeometryError
-from .physics import EFFORT, PhysicsResult, PhysicsSettings, mesh_volume
+from .physics import EFFORT, PhysicsResult, PhysicsSettings, object_mass
 
 #: starts of a check: from the trial's closed joints, or from the open hand
 STARTS = ("closed", "open")
@@ -61,6 +61,12 @@ class MujocoSettings:
     @classmethod
     def defaults(cls):
         return cls(PhysicsSettings.defaults())
+
+    @classmethod
+    def from_params(cls, checks, mu):
+        """The settings of :class:`pipeline.params.CheckParams` ``checks`` at friction ``mu``."""
+        physics = PhysicsSettings(**checks.physics_settings(mu))
+        return cls(physics, torsional_friction_m=checks.torsional_friction_m, close_s=checks.close_s)
 
 
 def _mujoco():
@@ -95,7 +101,7 @@ def solid_part(part, *, thickness=0.001):
 def hand_urdf(hand):
     """The hand's URDF text as MuJoCo should read it: mesh paths kept whole, no static links
     fused, visual shapes dropped."""
-    from .export import hand_urdf_text
+    from .hands import hand_urdf_text
 
     options = '<mujoco><compiler strippath="false" fusestatic="false" discardvisual="true"/></mujoco>'
     return hand_urdf_text(hand).replace("</robot>", options + "</robot>", 1)
@@ -193,7 +199,7 @@ class MujocoCheck:
         self.settings = settings or MujocoSettings.defaults()
         self.model = model
         physics = self.settings.physics
-        self.mass = physics.density_kg_m3 * mesh_volume(vertices, faces)
+        self.mass = object_mass(physics, vertices, faces)
         centre, inertia = mass_properties(vertices, faces, self.mass)
         spec = build_spec(hand, model, parts, mass_kg=self.mass, centre=centre, inertia=inertia, settings=self.settings)
         try:

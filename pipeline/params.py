@@ -18,6 +18,10 @@ import yaml
 from .errors import BadParamsError
 
 
+#: ``checks.engine``: which lift-and-shake checks run
+ENGINES = ("pybullet", "mujoco", "both")
+
+
 @dataclass(frozen=True)
 class SampleParams:
     """Surface sampling (stage ``sample``)."""
@@ -331,7 +335,20 @@ class CheckParams:
     """Trials checked per run (object, scale, hand) and planner, a seeded sample; -1 = every
     trial, 0 = none (the checks table is empty)."""
     physics: bool = True
-    """The lift-and-shake check (``physics_*`` columns); false: they are empty."""
+    """The lift-and-shake check (``physics_*``, ``mujoco_*`` columns); false: they are empty."""
+    engine: str = "both"
+    """Which lift-and-shake: ``pybullet`` (:mod:`pipeline.physics`: ``physics_*`` columns),
+    ``mujoco`` (:mod:`pipeline.mujoco_check`: ``mujoco_*`` from the closed pose and
+    ``mujoco_open_*`` from the open hand) or ``both``."""
+    payload_kg: float = 0.1
+    """The graspable-mass rule: the checked object weighs its mesh volume times
+    ``density_kg_m3``, at most this (DexGraspBench's and DexGraspNet 2's 0.1 kg payload), so a
+    heavy object is not a failed grasp; -1 = no cap."""
+    torsional_friction_m: float = 0.005
+    """MuJoCo's torsional friction (m: the radius of the contact patch that resists a turn
+    about the normal; pybullet's check has none)."""
+    close_s: float = 0.5
+    """MuJoCo's open start: time the open hand's servos close on the free object (no gravity)."""
     robust_samples: int = 16
     """Perturbed copies per checked trial for ``robust_fc`` and ``robust_epsilon``; 0 = none."""
     pose_sigma_m: float = 0.005
@@ -384,6 +401,10 @@ class CheckParams:
         for key in ("density_kg_m3", "settle_s", "slip_m", "slip_rad"):
             _require(getattr(self, key) > 0, "checks", key, "must be > 0")
         _require(self.vhacd_resolution >= 10000, "checks", "vhacd_resolution", "must be >= 10000")
+        _require(self.engine in ENGINES, "checks", "engine", f"must be one of {', '.join(ENGINES)}")
+        _require(self.payload_kg == -1 or self.payload_kg > 0, "checks", "payload_kg", "must be > 0 or -1 (no cap)")
+        for key in ("torsional_friction_m", "close_s"):
+            _require(getattr(self, key) >= 0, "checks", key, "must be >= 0")
 
     def physics_settings(self, mu):
         """Keyword arguments of :class:`pipeline.physics.PhysicsSettings` (friction ``mu``)."""
@@ -398,6 +419,7 @@ class CheckParams:
             "shake_s",
             "slip_m",
             "slip_rad",
+            "payload_kg",
         )
         return {"mu": mu, **{name: getattr(self, name) for name in names}}
 

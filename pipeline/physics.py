@@ -6,7 +6,9 @@ pose and joints) and runs pybullet's dynamics (headless, its own client):
 
 - the object is a dynamic body made of convex parts (pybullet can only move convex shapes;
   :func:`convex_parts`: pybullet's built-in V-HACD), its mass its mesh volume times
-  ``density_kg_m3``, its friction ``mu``;
+  ``density_kg_m3`` but at most ``payload_kg`` (:func:`object_mass`: an object heavier than the
+  payload is checked at the payload, so a held rate describes grasps, not weights), its
+  friction ``mu``;
 - the hand is held still, fixed in the world, every joint (mimics included) a position servo
   limited to the hand's ``joint_effort`` (:data:`EFFORT` by joint kind unless its spec says):
   it starts opened by ``open_back`` (rad or m along each joint's closing direction) and is
@@ -74,6 +76,7 @@ class PhysicsSettings:
     shake_s: float
     slip_m: float
     slip_rad: float
+    payload_kg: float = -1.0
     timestep_s: float = 1.0 / 240.0
 
     @classmethod
@@ -174,6 +177,13 @@ def decompose(surface, *, vhacd_resolution=1000000):
     )
 
 
+def object_mass(settings, vertices, faces):
+    """The checked object's mass (kg): its mesh volume times ``settings.density_kg_m3``, at most
+    ``settings.payload_kg`` (the graspable-mass rule; -1: no cap)."""
+    mass = settings.density_kg_m3 * mesh_volume(vertices, faces)
+    return mass if settings.payload_kg < 0 else min(mass, settings.payload_kg)
+
+
 def mesh_volume(vertices, faces):
     """Volume (m^3) of a closed, outward-oriented mesh (signed tetrahedra)."""
     corners = np.asarray(vertices, float)[np.asarray(faces)]
@@ -210,7 +220,7 @@ class PhysicsCheck(BulletClient):
         call(pybullet.setTimeStep, settings.timestep_s)
         parts = convex_parts(vertices, faces, client=self.client) if parts is None else parts
         shape = self._compound(parts)
-        self.mass = settings.density_kg_m3 * mesh_volume(vertices, faces)
+        self.mass = object_mass(settings, vertices, faces)
         # pybullet's base position is the centre of mass: the mesh's own, so torques are right
         self.centre = tuple(mass_properties(np.asarray(vertices, float), np.asarray(faces)))
         self.object = call(

@@ -1,8 +1,8 @@
 """Stage ``check``: python -m stages.check SURFACE.npz TRIALS.parquet PARTS.npz HAND CHECKS.parquet
 [--timing T.json] [--log L.mcap]
 
-A seeded sample of the hand's trials per planner: the pybullet lift-and-shake check and robust
-force closure (params ``checks``; see pipeline/grasp_checks.py).
+A seeded sample of the hand's trials per planner: the lift-and-shake checks (pybullet, MuJoCo
+from the closed pose and from the open hand) and robust force closure (params ``checks``; see pipeline/grasp_checks.py).
 """
 
 import dataclasses
@@ -48,13 +48,15 @@ def main(argv=None):
                 f"{planner}_{key}": value
                 for planner in ("mat", "baseline")
                 for key, value in result[planner].items()
-                if key != "physics_outcomes"
+                if not key.endswith("_outcomes")
             }
         )
     mat, baseline = result["mat"], result["baseline"]
     print(
-        f"check {args.checks}: {len(checks)} trials, held {mat['physics_success_rate']:.1%} MAT, "
-        f"{baseline['physics_success_rate']:.1%} baseline; robust force closure {mat['robust_fc']:.2f} / {baseline['robust_fc']:.2f}"
+        f"check {args.checks}: {len(checks)} trials, held (pybullet / MuJoCo / MuJoCo open) "
+        f"{mat['physics_success_rate']:.1%} / {mat['mujoco_success_rate']:.1%} / {mat['mujoco_open_success_rate']:.1%} MAT, "
+        f"{baseline['physics_success_rate']:.1%} / {baseline['mujoco_success_rate']:.1%} / "
+        f"{baseline['mujoco_open_success_rate']:.1%} baseline; robust force closure {mat['robust_fc']:.2f} / {baseline['robust_fc']:.2f}"
     )
 
 

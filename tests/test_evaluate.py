@@ -75,14 +75,15 @@ def test_a_panda_grasp_in_acronyms_frame_holds_the_cube_and_one_beside_it_has_no
     labels = evaluate(path, tmp_path / "out")
     assert labels.grasp.tolist() == [0, 1]
     assert labels.outcome.tolist() == ["force_closure", "no_contact"]
-    assert labels.physics_outcome.tolist() == ["held", "no_grasp"]
+    for check in ("physics", "mujoco", "mujoco_open"):  # pybullet, MuJoCo from the closed pose and from the open hand
+        assert labels[f"{check}_outcome"].tolist() == ["held", "no_grasp"]
     assert set(labels.touched[0].split(",")) >= {"panda_leftfinger", "panda_rightfinger"}
     assert labels.robust_fc[0] > 0.5 and labels.robust_fc[1] == 0.0
     found = json.loads((tmp_path / "out" / "agreement.json").read_text())
-    for verdict in ("force_closure", "physics_success", "robust_fc"):
+    for verdict in ("force_closure", "physics_success", "mujoco_success", "mujoco_open_success", "robust_fc"):
         row = found["verdicts"][verdict]
         assert (row["tp"], row["fp"], row["fn"], row["tn"], row["balanced_accuracy"]) == (1, 0, 0, 1, 1.0)
-    assert found["mass_kg"] == 0.05 and found["mu"] == 0.5
+    assert found["mass_kg"] == 0.05 and found["mu"] == 0.5 and found["engines"] == ["mujoco", "pybullet"]
     assert "force closure" in capsys.readouterr().out
     # the labelled copy: the file's own datasets untouched, ours beside them
     with h5py.File(path) as original, h5py.File(tmp_path / "out" / "cube.h5") as labelled:
@@ -91,6 +92,8 @@ def test_a_panda_grasp_in_acronyms_frame_holds_the_cube_and_one_beside_it_has_no
         ours = labelled["grasps/qualities/medial_grasp"]
         assert ours["force_closure"][()].tolist() == [1.0, 0.0]
         assert ours["physics_success"][()].tolist() == [1.0, 0.0]
+        assert ours["mujoco_open_success"][()].tolist() == [1.0, 0.0]
+        assert [value.decode() for value in ours["mujoco_outcome"][()]] == ["held", "no_grasp"]
         assert [value.decode() for value in ours["outcome"][()]] == ["force_closure", "no_contact"]
 
 
@@ -174,6 +177,17 @@ def test_labels_do_not_depend_on_the_sample_or_the_workers(tmp_path):
         part[columns], whole.set_index("grasp").loc[part.grasp, columns].reset_index(drop=True)
     )
     assert not (tmp_path / "two" / "agreement.json").exists()  # no labels in the file
+
+
+def test_one_engine_leaves_the_others_columns_empty_and_out_of_the_agreement(tmp_path):
+    path = write_acronym(tmp_path / "cube.h5", [ON_CUBE, BESIDE], [1, 0])
+    labels = evaluate(path, tmp_path / "out", "--engine", "pybullet")
+    assert labels.physics_outcome.tolist() == ["held", "no_grasp"]
+    assert (labels.mujoco_outcome == "").all() and (labels.mujoco_open_outcome == "").all()
+    found = json.loads((tmp_path / "out" / "agreement.json").read_text())
+    assert set(found["verdicts"]) == {"force_closure", "physics_success", "robust_fc"}
+    with h5py.File(tmp_path / "out" / "cube.h5") as labelled:
+        assert np.isnan(labelled["grasps/qualities/medial_grasp/mujoco_success"][()]).all()
 
 
 def test_roc_auc_and_the_confusion_table_known_answers():

@@ -44,12 +44,45 @@ def test_a_seeded_sample_per_planner_with_physics_only_on_closed_hands(run):
     assert (table.outcome.to_numpy() == trials.outcome.astype(str).iloc[table.trial].to_numpy()).all()
     closed = table.outcome.isin(["force_closure", "no_force_closure"])
     assert closed.any() and (~closed).any()  # the fixture has both kinds in its sample
-    assert (table.physics_outcome[~closed] == "no_grasp").all() and table.physics_slip_m[~closed].isna().all()
-    assert table.physics_outcome[closed].isin(["held", "slipped", "dropped", "no_grasp"]).all()
-    assert (table.physics_success == (table.physics_outcome == "held")).all()
+    for check in ("physics", "mujoco", "mujoco_open"):  # checks.engine both: pybullet and MuJoCo's two starts
+        outcome = table[f"{check}_outcome"]
+        assert (outcome[~closed] == "no_grasp").all() and table[f"{check}_slip_m"][~closed].isna().all()
+        assert outcome[closed].isin(["held", "slipped", "dropped", "no_grasp"]).all()
+        assert (table[f"{check}_success"] == (outcome == "held")).all()
+        # a force-closure jaw grasp across two faces of the cube holds
+        assert (outcome[table.outcome == "force_closure"] == "held").any()
     assert table.robust_fc.isin([0.0, 1 / 3, 2 / 3, 1.0]).all()  # 3 copies each
-    # a force-closure jaw grasp across two faces of the cube holds
-    assert (table.physics_outcome[table.outcome == "force_closure"] == "held").any()
+    np.testing.assert_allclose(table.mass_kg, 0.032, rtol=1e-9)  # 64 cm^3 at 500 kg/m^3, under the 0.1 kg payload
+
+
+@pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
+def test_checks_engine_runs_that_engine_alone(run, engine):
+    table = checked(run, engine=engine)
+    ran = {"pybullet": ["physics"], "mujoco": ["mujoco", "mujoco_open"]}[engine]
+    for check in ("physics", "mujoco", "mujoco_open"):
+        assert (table[f"{check}_outcome"] != "").all() == (check in ran)
+        assert (table[f"{check}_outcome"] == "").all() == (check not in ran)
+    assert np.isnan(summary(table)["mat"]["engines_agree"])
+
+
+def test_a_heavy_object_is_checked_at_the_payload_not_counted_as_a_failed_grasp(run):
+    """The same cube at 200,000 kg/m^3 weighs 12.8 kg: no cap, the jaw's 2 x 20 N grip (friction
+    20 N) drops it from every force-closure grasp, on both engines. Under the graspable-mass
+    rule (payload 0.1 kg) it is checked at 0.1 kg, and the force-closure grasps hold it about as
+    often as the 32 g cube (measured: pybullet 4 and 2 of 9, MuJoCo 4 and 4, its open start 4 and 4)."""
+    light = checked(run)
+    heavy = checked(run, density_kg_m3=200000.0, payload_kg=-1.0)
+    capped = checked(run, density_kg_m3=200000.0)
+    assert heavy.mass_kg.iloc[0] == pytest.approx(12.8) and (capped.mass_kg == 0.1).all()
+    force_closure = light.outcome == "force_closure"
+    for check in ("physics", "mujoco", "mujoco_open"):
+        assert light[f"{check}_success"][force_closure].any()
+        assert not heavy[f"{check}_success"].any()
+        held, held_capped = (
+            light[f"{check}_success"][force_closure].sum(),
+            capped[f"{check}_success"][force_closure].sum(),
+        )
+        assert held_capped >= max(1, held / 2)  # marginal grasps (slip near 2 cm) go either way
 
 
 def test_the_same_seed_gives_the_same_table_whatever_the_workers(run):
@@ -76,6 +109,9 @@ def test_summary_counts_the_checked_trials(run):
     assert result["mat"]["physics_success_rate"] == pytest.approx(mat.physics_success.mean())
     assert result["mat"]["robust_fc"] == pytest.approx(mat.robust_fc.mean())
     assert sum(result["mat"]["physics_outcomes"].values()) == 5
+    assert result["mat"]["mujoco_open_success_rate"] == pytest.approx(mat.mujoco_open_success.mean())
+    agree = (mat.physics_success == mat.mujoco_success).mean()
+    assert result["mat"]["engines_agree"] == pytest.approx(agree)
 
 
 def test_a_checks_table_of_other_trials_is_refused(run):
