@@ -333,22 +333,28 @@ def image_grid(images, columns, *, pad=8):
 
 
 def calibration_figure(table, *, size=(900, 360)):
-    """Physics success % per bin of the analytic scores (:func:`pipeline.report.calibration`'s
-    table), MAT and the baseline: epsilon bins on the left (0 = no force closure, then the
+    """Held % per bin of the analytic scores (:func:`pipeline.report.calibration`'s table), MAT
+    and the baseline, one line style per lift-and-shake (solid pybullet, dashed MuJoCo, dotted
+    MuJoCo's open start): epsilon bins on the left (0 = no force closure, then the
     force-closure trials' deciles), robust force closure on the right. Returns (h, w, 3) uint8."""
     figure = _canvas(size)
     titles = {"epsilon": "epsilon (bin 0: no force closure; 1-10: deciles)", "robust_fc": "robust force closure"}
+    styles = {"physics": ("o-", "pybullet"), "mujoco": ("s--", "MuJoCo"), "mujoco_open": ("^:", "MuJoCo open")}
     for number, score in enumerate(("epsilon", "robust_fc")):
         axes = figure.add_subplot(1, 2, number + 1)
-        for planner, colour in (("mat", "tab:blue"), ("baseline", "tab:orange")):
-            rows = table[(table.score == score) & (table.planner == planner)]
-            x = rows.bin.to_numpy() if score == "epsilon" else (rows.low.to_numpy() + rows.high.to_numpy()) / 2
-            axes.plot(x, rows.physics_success_pct, "o-", color=colour, label=f"{planner} ({rows.checked.sum()})")
+        for check, (style, name) in styles.items():
+            for planner, colour in (("mat", "tab:blue"), ("baseline", "tab:orange")):
+                rows = table[(table.check == check) & (table.score == score) & (table.planner == planner)]
+                if not rows.checked.sum():
+                    continue
+                x = rows.bin.to_numpy() if score == "epsilon" else (rows.low.to_numpy() + rows.high.to_numpy()) / 2
+                label = f"{planner}, {name} ({rows.checked.sum()})"
+                axes.plot(x, rows.physics_success_pct, style, color=colour, label=label, markersize=3)
         axes.set_xlabel(titles[score], fontsize=8)
-        axes.set_ylabel("held in the physics check (%)", fontsize=8)
+        axes.set_ylabel("held in the lift-and-shake (%)", fontsize=8)
         axes.set_ylim(-5, 105)
         axes.tick_params(labelsize=7)
-        axes.legend(fontsize=7, title="checked trials", title_fontsize=7)
+        axes.legend(fontsize=6, title="checked trials", title_fontsize=6)
         axes.grid(alpha=0.3)
     figure.tight_layout()
     return _pixels(figure)

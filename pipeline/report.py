@@ -8,11 +8,15 @@ Markdown text; the ``report`` stage does the reading and writing.
 import numpy as np
 import pandas as pd
 
-from .grasp_checks import CHECK_COLUMNS, with_checks
+from .grasp_checks import CHECK_COLUMNS, PHYSICS_CHECKS, with_checks
 from .simulation import OUTCOMES
 from .trials import PLANNERS
 
 HAND_TITLES = {"armar3": "ARMAR-III", "barrett": "Barrett", "parallel_jaw": "parallel jaw"}
+#: the lift-and-shake checks as the report names them
+CHECK_TITLES = {"physics": "pybullet", "mujoco": "MuJoCo", "mujoco_open": "MuJoCo, open start"}
+#: per run and planner: the held % of each check and the engines' agreement %
+HELD_COLUMNS = ("physics_success_pct", "mujoco_success_pct", "mujoco_open_success_pct", "engines_agree_pct")
 KEYS = ["object", "scale", "hand"]
 
 
@@ -37,8 +41,9 @@ def combine(tables, checks=None):
 
 def results(trials, runs):
     """One row per run (object, scale, hand) and planner (:data:`pipeline.trials.PLANNERS`) side
-    by side: trials, force-closure rate (%), mean epsilon over the force-closure trials, checks,
-    and the MAT outcome counts.
+    by side: trials, force-closure rate (%), mean epsilon over the force-closure trials, checks
+    (each lift-and-shake's held %: :data:`HELD_COLUMNS`, with the share of trials both engines
+    checked on which pybullet and MuJoCo agree), and the MAT outcome counts.
 
     Parameters
     ----------
@@ -50,9 +55,13 @@ def results(trials, runs):
     """
     index = pd.MultiIndex.from_tuples([(name, float(scale), hand) for name, scale, hand in runs], names=KEYS)
     closed = trials.outcome == "force_closure"
-    held = trials.physics_success.astype(float)  # NaN where unchecked: the means are over the checked
+    held = {f"{check}_held": trials[f"{check}_success"].astype(float) for check in PHYSICS_CHECKS}  # NaN: not checked
     grouped = trials.assign(
-        closed=closed, closed_epsilon=trials.epsilon.where(closed), held=held, checked=_checked(trials)
+        closed=closed,
+        closed_epsilon=trials.epsilon.where(closed),
+        checked=_checked(trials),
+        agree=_engines_agree(trials),
+        **held,
     ).groupby(KEYS + ["planner"], observed=True)
     table = pd.DataFrame(
         {
@@ -60,7 +69,8 @@ def results(trials, runs):
             "force_closure_pct": 100.0 * grouped.closed.mean(),
             "mean_epsilon": grouped.closed_epsilon.mean(),
             "checked": grouped.checked.sum(),
-            "physics_success_pct": 100.0 * grouped.held.mean(),
+            **{f"{check}_success_pct": 100.0 * grouped[f"{check}_held"].mean() for check in PHYSICS_CHECKS},
+            "engines_agree_pct": 100.0 * grouped.agree.mean(),
             "robust_fc_pct": 100.0 * grouped.robust_fc.mean(),
         }
     ).unstack("planner")
@@ -71,7 +81,7 @@ def results(trials, runs):
             "force_closure_pct",
             "mean_epsilon",
             "checked",
-            "physics_success_pct",
+            *HELD_COLUMNS,
             "robust_fc_pct",
         ):
             values = table[(column, planner)] if (column, planner) in table.columns else pd.Series(dtype=float)
@@ -88,8 +98,17 @@ def results(trials, runs):
 
 
 def _checked(trials):
-    """Trials that the check stage sampled (a physics check, robust force closure or both)."""
-    return (trials.physics_outcome != "") | trials.robust_fc.notna()
+    """Trials that the check stage sampled (a lift-and-shake, robust force closure or both)."""
+    ran = np.logical_or.reduce([(trials[f"{check}_outcome"] != "").to_numpy() for check in PHYSICS_CHECKS])
+    return pd.Series(ran, index=trials.index) | trials.robust_fc.notna()
+
+
+def _engines_agree(trials):
+    """1.0 where pybullet's and MuJoCo's closed-pose checks agree on held, 0.0 where not, NaN
+    where either did not run (a float Series)."""
+    both = (trials.physics_outcome != "") & (trials.mujoco_outcome != "")
+    agree = trials.physics_outcome.eq("held") == trials.mujoco_outcome.eq("held")
+    return agree.astype(float).where(both)
 
 
 def metrics(trials, table):
@@ -99,14 +118,22 @@ def metrics(trials, table):
 
     def rates(frame):
         closed = frame.outcome == "force_closure"
-        held = frame.physics_success.dropna().astype(float)
         checked = int(_checked(frame).sum())
         robust = frame.robust_fc.dropna()
+        agree = _engines_agree(frame).dropna()
+
+        def mean(values):
+            return round(float(values.mean()), 4) if len(values) else float("nan")
+
         return {
             "force_closure_rate": round(float(closed.mean()), 4) if len(frame) else float("nan"),
             "trials": int(len(frame)),
-            "physics_success_rate": round(float(held.mean()), 4) if len(held) else float("nan"),
-            "robust_fc": round(float(robust.mean()), 4) if len(robust) else float("nan"),
+            **{
+                f"{check}_success_rate": mean(frame[f"{check}_success"].dropna().astype(float))
+                for check in PHYSICS_CHECKS
+            },
+            "engines_agree": mean(agree),
+            "robust_fc": mean(robust),
             "checked": checked,
         }
 
@@ -114,7 +141,8 @@ def metrics(trials, table):
     for key in ("hand", "scale"):
         for rate, prefix in (
             ("force_closure_rate", ""),
-            ("physics_success_rate", "physics_"),
+            *((f"{check}_success_rate", f"{check}_") for check in PHYSICS_CHECKS),
+            ("engines_agree", "engines_agree_"),
             ("robust_fc", "robust_fc_"),
         ):
             out[f"{prefix}per_{key}"] = {
@@ -138,7 +166,7 @@ def plot_tables(table, trials, *, bins=20):
             {
                 "run": run,
                 "force_closure_pct": table[f"{planner}_force_closure_pct"].fillna(0.0).round(2),
-                "physics_success_pct": table[f"{planner}_physics_success_pct"].round(2),
+                **{column: table[f"{planner}_{column}"].round(2) for column in HELD_COLUMNS},
                 "robust_fc_pct": table[f"{planner}_robust_fc_pct"].round(2),
             }
         )
@@ -155,15 +183,23 @@ def plot_tables(table, trials, *, bins=20):
 
 def calibration_plots(calibration):
     """``{score: table}`` for ``dvc plots`` from :func:`calibration`: per bin, its edges, each
-    planner's physics success % (empty where no trial was checked) and checked trials."""
+    planner's held % per check (``mat``, ``baseline``: pybullet's; ``mat_mujoco``,
+    ``baseline_mujoco``, ``mat_mujoco_open``, ...; empty where no trial was checked) and the
+    trials each check ran on (``mat_checked``, ``mat_mujoco_checked``, ...)."""
     plots = {}
-    for score, rows in calibration.assign(low=calibration.low.round(6), high=calibration.high.round(6)).groupby(
-        "score", sort=False
-    ):
-        wide = rows.pivot(index=["bin", "low", "high"], columns="planner", values=["physics_success_pct", "checked"])
-        frame = wide["physics_success_pct"].reindex(columns=["mat", "baseline"]).round(2)
-        for planner in ("mat", "baseline"):
-            frame[f"{planner}_checked"] = wide["checked"][planner].fillna(0).astype(int)
+    rounded = calibration.assign(low=calibration.low.round(6), high=calibration.high.round(6))
+    for score, rows in rounded.groupby("score", sort=False):
+        frame = None
+        for check, part in rows.groupby("check", sort=False):
+            wide = part.pivot(
+                index=["bin", "low", "high"], columns="planner", values=["physics_success_pct", "checked"]
+            )
+            suffix = "" if check == "physics" else f"_{check}"
+            held = wide["physics_success_pct"].reindex(columns=["mat", "baseline"]).round(2)
+            held.columns = [f"{planner}{suffix}" for planner in held.columns]
+            for planner in ("mat", "baseline"):
+                held[f"{planner}{suffix}_checked"] = wide["checked"][planner].fillna(0).astype(int)
+            frame = held if frame is None else frame.join(held)
         plots[score] = frame.reset_index()
     return plots
 
@@ -195,8 +231,9 @@ def _pct(value, count):
 def table_one(table, planner):
     """Markdown of the paper's Table I layout for one planner: a row per object, a column per
     hand and scale, cells the force-closure % ("-": no trials, the object had no candidates);
-    when any trial was checked, followed by the physics success % and the mean robust force
-    closure (%) of the checked trials in brackets."""
+    when any trial was checked, followed by the held % in pybullet's and in MuJoCo's
+    lift-and-shake (from the closed pose) and the mean robust force closure (%) of the checked
+    trials in brackets."""
     hands = list(dict.fromkeys(table.hand))
     scales = list(dict.fromkeys(table.scale))
     checked = bool(table[f"{planner}_checked"].sum()) if f"{planner}_checked" in table.columns else False
@@ -219,19 +256,31 @@ def table_one(table, planner):
 def _cell(row, planner, checked):
     text = _pct(row[f"{planner}_force_closure_pct"], row[f"{planner}_trials"])
     if checked and row[f"{planner}_checked"]:
-        held, robust = row[f"{planner}_physics_success_pct"], row[f"{planner}_robust_fc_pct"]
-        text += f" ({_pct(held, 1)} / {_pct(robust, 1)})"
+        values = [
+            row[f"{planner}_{column}"] for column in ("physics_success_pct", "mujoco_success_pct", "robust_fc_pct")
+        ]
+        text += " (" + " / ".join(_pct(value, 1) for value in values) + ")"
     return text
 
 
 def calibration(trials, *, bins=10):
-    """Physics success of the checked trials against their analytic scores, per planner: a row
-    per ``score`` (``epsilon``: a bin of the trials without force closure, then deciles of the
-    force-closure trials' epsilon over both planners; ``robust_fc``: ``bins`` equal bins of
-    [0, 1]) and bin, with its ``low`` and ``high`` edges, the ``checked`` trials and their
-    ``physics_success_pct`` (NaN when none)."""
-    checked = trials[trials.physics_success.notna()]
-    held = checked.physics_success.astype(float).to_numpy()
+    """Held in each lift-and-shake (:data:`pipeline.grasp_checks.PHYSICS_CHECKS`) against the
+    analytic scores, per planner: :func:`calibration_of` of each check, a ``check`` column first."""
+    frames = [calibration_of(trials, check, bins=bins) for check in PHYSICS_CHECKS]
+    return pd.concat([frame.assign(check=check) for frame, check in zip(frames, PHYSICS_CHECKS)], ignore_index=True)[
+        ["check", *frames[0].columns]
+    ]
+
+
+def calibration_of(trials, check="physics", *, bins=10):
+    """Held in the ``check`` lift-and-shake (``physics``: pybullet's) of the trials it ran on,
+    against their analytic scores, per planner: a row per ``score`` (``epsilon``: a bin of the
+    trials without force closure, then deciles of the force-closure trials' epsilon over both
+    planners; ``robust_fc``: ``bins`` equal bins of [0, 1]) and bin, with its ``low`` and
+    ``high`` edges, the ``checked`` trials and their ``physics_success_pct`` (the held %; NaN
+    when none)."""
+    checked = trials[trials[f"{check}_success"].notna()]
+    held = checked[f"{check}_success"].astype(float).to_numpy()
     closed = (checked.outcome == "force_closure").to_numpy()
     positive = checked.epsilon.to_numpy(float)[closed]
     edges = np.quantile(positive, np.linspace(0, 1, bins + 1)) if len(positive) else np.zeros(bins + 1)
@@ -266,10 +315,9 @@ def runs_table(table):
     epsilon, and the MAT trials' outcome counts."""
     lines = [
         "| object | scale | hand | MAT % | baseline % | MAT trials | baseline trials | MAT mean eps "
-        "| baseline mean eps | MAT held % | baseline held % | MAT robust % | baseline robust % | "
-        + " | ".join(OUTCOMES)
-        + " |",
-        "| --- | ---: | --- |" + " ---: |" * (10 + len(OUTCOMES)),
+        "| baseline mean eps | MAT held % | baseline held % | MAT MuJoCo held % | baseline MuJoCo held % "
+        "| MAT robust % | baseline robust % | " + " | ".join(OUTCOMES) + " |",
+        "| --- | ---: | --- |" + " ---: |" * (12 + len(OUTCOMES)),
     ]
     for row in table.itertuples(index=False):
         epsilon = [
@@ -278,7 +326,7 @@ def runs_table(table):
         counts = [str(getattr(row, outcome)) for outcome in OUTCOMES]
         checks = [
             _pct(getattr(row, f"{planner}_{column}"), getattr(row, f"{planner}_checked"))
-            for column in ("physics_success_pct", "robust_fc_pct")
+            for column in ("physics_success_pct", "mujoco_success_pct", "robust_fc_pct")
             for planner in ("mat", "baseline")
         ]
         lines.append(
@@ -298,10 +346,48 @@ def _checks_summary(mat, baseline):
 
     return [
         f"Checked trials (a seeded sample per run and planner, `checks.parquet`): MAT {mat['checked']}, held in "
-        f"the physics check {rate(mat['physics_success_rate'])}, mean robust force closure "
-        f"{rate(mat['robust_fc'])}; baseline {baseline['checked']}, {rate(baseline['physics_success_rate'])} and "
-        f"{rate(baseline['robust_fc'])}. Table I's cells then read: force closure % (held % / robust force "
-        "closure %).",
+        f"pybullet's lift-and-shake {rate(mat['physics_success_rate'])}, in MuJoCo's "
+        f"{rate(mat['mujoco_success_rate'])} (from the open hand {rate(mat['mujoco_open_success_rate'])}), mean "
+        f"robust force closure {rate(mat['robust_fc'])}; baseline {baseline['checked']}, "
+        f"{rate(baseline['physics_success_rate'])}, {rate(baseline['mujoco_success_rate'])} "
+        f"({rate(baseline['mujoco_open_success_rate'])}) and {rate(baseline['robust_fc'])}. Table I's cells then "
+        "read: force closure % (held % pybullet / held % MuJoCo / robust force closure %).",
+        "",
+    ]
+
+
+def engines_table(metrics_dict):
+    """Markdown: per hand and planner, the held % of each lift-and-shake and the engines'
+    agreement (from :func:`metrics`)."""
+    lines = [
+        "| hand | planner | "
+        + " | ".join(f"held % {title}" for title in CHECK_TITLES.values())
+        + " | engines agree % |",
+        "| --- | --- |" + " ---: |" * (len(CHECK_TITLES) + 1),
+    ]
+    for hand in metrics_dict["per_hand"]:
+        for planner in ("mat", "baseline"):
+            values = [metrics_dict[f"{check}_per_hand"][hand][planner] for check in CHECK_TITLES]
+            values.append(metrics_dict["engines_agree_per_hand"][hand][planner])
+            cells = ["-" if np.isnan(value) else f"{100 * value:.1f}" for value in values]
+            lines.append(f"| {HAND_TITLES.get(hand, hand)} | {planner} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _engines_section(metrics_dict):
+    mat = metrics_dict["mat"]
+    if np.isnan(mat["engines_agree"]) and not any(metrics_dict[planner]["checked"] for planner in ("mat", "baseline")):
+        return []
+    return [
+        "## The lift-and-shake on two engines",
+        "",
+        "The same checked trials, held in pybullet's check (rigid point contacts, `physics_*`), in MuJoCo's "
+        "(soft contacts, elliptic cones, torsional friction; `mujoco_*`) and in MuJoCo's from the open hand "
+        "closing on the free object (`mujoco_open_*`); the engines agree where both say held or both say "
+        "not (closed-pose starts). The object weighs its volume x `checks.density_kg_m3`, at most "
+        "`checks.payload_kg` (the graspable-mass rule: a heavy object is checked at the payload).",
+        "",
+        engines_table(metrics_dict),
         "",
     ]
 
@@ -348,6 +434,7 @@ def markdown(table, metrics_dict, timings, *, figures=(), settings=""):
         "",
         table_one(table, "baseline"),
         "",
+        *_engines_section(metrics_dict),
         "## Every run",
         "",
         "Mean epsilon is over the force-closure trials (Ferrari-Canny L1, torque over the object's "

@@ -135,3 +135,35 @@ def test_the_report_counts_robust_only_checks(run):
     metrics = report.metrics(combined, report.results(combined, [key]))
     assert metrics["mat"]["checked"] == 5 and 0 <= metrics["mat"]["robust_fc"] <= 1
     assert np.isnan(metrics["mat"]["physics_success_rate"])
+
+
+def test_the_report_shows_each_engine_and_their_agreement(run):
+    """From the checks of both engines, hand-counted: the run's held % per check and the engines'
+    agreement % in the results, Table I's cells (force closure (pybullet / MuJoCo / robust)),
+    the engines table, and a calibration table and plot columns per check."""
+    from pipeline import report
+
+    _, trials, _ = run
+    key = ("cube", 1.0, "parallel_jaw")
+    table = checked(run)
+    combined = report.combine({key: trials}, {key: table})
+    results = report.results(combined, [key])
+    mat = table[table.planner == "mat"]
+    row = results.iloc[0]
+    for check in ("physics", "mujoco", "mujoco_open"):
+        assert row[f"mat_{check}_success_pct"] == pytest.approx(100 * mat[f"{check}_success"].mean())
+    agree = 100 * (mat.physics_success == mat.mujoco_success).mean()
+    assert row.mat_engines_agree_pct == pytest.approx(agree)
+    cell = report.table_one(results, "mat").splitlines()[-1]
+    expected = [row.mat_physics_success_pct, row.mat_mujoco_success_pct, row.mat_robust_fc_pct]
+    assert f"({' / '.join(f'{value:.1f}' for value in expected)})" in cell
+    metrics = report.metrics(combined, results)
+    engines = report.engines_table(metrics).splitlines()
+    assert engines[2].startswith("| parallel jaw | mat |") and engines[2].endswith(f"| {agree:.1f} |")
+    calibration = report.calibration(combined)
+    assert list(calibration.check.unique()) == ["physics", "mujoco", "mujoco_open"]
+    for check in ("physics", "mujoco", "mujoco_open"):
+        rows = calibration[(calibration.check == check) & (calibration.score == "robust_fc")]
+        assert rows.checked.sum() == (combined[f"{check}_outcome"] != "").sum()
+    plots = report.calibration_plots(calibration)
+    assert {"mat", "baseline", "mat_mujoco", "baseline_mujoco_open", "mat_mujoco_open_checked"} <= set(plots["epsilon"])
