@@ -72,6 +72,11 @@ class MujocoSettings:
 def _mujoco():
     import mujoco
 
+    # MuJoCo's default warning handler prints and appends to MUJOCO_LOG.TXT in the working folder
+    # (a stage's or the user's); the one warning that matters here, an unstable step (MuJoCo then
+    # resets the state itself), is read from the data's counters instead (MujocoCheck._steps)
+    if mujoco.get_mju_user_warning() is None:
+        mujoco.set_mju_user_warning(lambda message: None)
     return mujoco
 
 
@@ -230,7 +235,9 @@ class MujocoCheck:
         mujoco = _mujoco()
         count = max(int(round(seconds / self.mj.opt.timestep)), 1)
         mujoco.mj_step(self.mj, self.data, nstep=count)
-        if not np.isfinite(self.data.qpos).all():
+        # an unstable step (NaN or huge accelerations): MuJoCo warns and resets the state to the
+        # model's initial one, which would read as no_grasp
+        if self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number or not np.isfinite(self.data.qpos).all():
             raise _Unstable
 
     def _touching(self):

@@ -173,6 +173,7 @@ def test_labels_do_not_depend_on_the_sample_or_the_workers(tmp_path):
     part = pd.read_parquet(tmp_path / "two" / "labels.parquet")
     assert len(part) == 3
     columns = ["outcome", "epsilon", "robust_fc", "robust_epsilon", "physics_outcome", "physics_slip_m"]
+    columns += ["mujoco_outcome", "mujoco_slip_m", "mujoco_open_outcome", "mujoco_open_slip_m"]
     pd.testing.assert_frame_equal(
         part[columns], whole.set_index("grasp").loc[part.grasp, columns].reset_index(drop=True)
     )

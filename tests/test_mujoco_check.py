@@ -223,3 +223,20 @@ def test_the_model_holds_the_parts_the_mass_and_the_coupling():
     hand_geoms = compiled.geom_bodyid != body.id
     assert (compiled.geom_conaffinity[hand_geoms] == 0).all() and (compiled.geom_contype[~hand_geoms] == 0).all()
     assert (compiled.geom_condim == 4).all() and (compiled.geom_friction[:, 1] == settings.torsional_friction_m).all()
+
+
+def test_a_simulation_that_blows_up_is_an_error_and_writes_no_log(jaw_on_cube, tmp_path, monkeypatch):
+    """A shake of 1e20 body weights makes MuJoCo's accelerations overflow; MuJoCo then warns and
+    resets the state itself, which would read as no_grasp: the check says ``error``, MuJoCo's
+    default MUJOCO_LOG.TXT is not written into the working folder, and the next check is
+    unaffected."""
+    monkeypatch.chdir(tmp_path)
+    result, model_engine, _ = jaw_on_cube
+    check = make_check("mujoco", cube(), HANDS["parallel_jaw"], model_engine.model)
+    normal = check.settings
+    check.settings = MujocoSettings(dataclasses.replace(normal.physics, shake_g=1e20))
+    blown = check.check(*pose(result))
+    check.settings = normal
+    assert blown.outcome == "error" and np.isnan(blown.slip_m)
+    assert check.check(*pose(result)).outcome == "held"
+    assert not list(tmp_path.iterdir())
