@@ -401,9 +401,9 @@ def run_evaluate_bench(*, grasps=64, out=print):
     """``evaluate``'s labelling beside plain trials, one core, on the bench's duck: per hand,
     the closed poses and open joints of the first ``grasps`` MAT trials that closed (what an
     export of them holds) labelled by :class:`pipeline.evaluate.Labeller` at the default params
-    (closed in place, ``checks.robust_samples`` noisy copies, pybullet's lift-and-shake of those
-    that closed): grasps/s with every verdict and with the close in place alone, beside the
-    trials/s of the same candidates. Returns the rows."""
+    (closed in place, ``checks.robust_samples`` noisy copies, the lift-and-shakes of
+    ``checks.engine`` on those that closed): grasps/s with every verdict and with the close in
+    place alone, beside the trials/s of the same candidates. Returns the rows."""
     from types import SimpleNamespace
 
     from scipy.spatial.transform import Rotation
@@ -418,7 +418,7 @@ def run_evaluate_bench(*, grasps=64, out=print):
     parts = decompose(surface).parts
     out(
         f"evaluate on the duck ({faces} triangles), one core: {grasps} closed MAT grasps per hand, "
-        f"{robust['samples']} noisy copies each, the physics check on those that close"
+        f"{robust['samples']} noisy copies each, the lift-and-shakes ({', '.join(physics)}) on those that close"
     )
     out(f"{'hand':13} {'trials/s':>9} {'in place/s':>11} {'evaluate/s':>11} {'ms/grasp':>9}  outcomes")
     rows = []
