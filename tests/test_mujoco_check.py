@@ -12,6 +12,7 @@ from pipeline.evaluate import InPlaceEngine
 from pipeline.hands import HANDS, Finger
 from pipeline.kinematics import base_poses
 from pipeline.mujoco_check import MujocoCheck, MujocoSettings, build_spec, mass_properties
+from pipeline.params import CheckParams, SimulateParams
 from pipeline.physics import PhysicsCheck, PhysicsSettings
 from test_simulation import cube, surface
 
@@ -71,6 +72,17 @@ def pose(result):
     return result.base_position, result.base_orientation, result.joint_positions
 
 
+def starts(engine, check, result, opened):
+    """The check of ``result``'s closed hand, and on MuJoCo also from the open hand; the check closed."""
+    try:
+        found = [check.check(*pose(result))]
+        if engine == "mujoco":
+            found.append(check.check(*pose(result), open_joints=opened))
+    finally:
+        check.close()
+    return found
+
+
 @pytest.mark.parametrize("engine", ENGINES)
 def test_the_jaw_squeezing_a_cube_holds_it_and_one_beside_it_has_no_grasp(jaw_on_cube, engine):
     """32 g of cube between two pads pressing with 20 N each: held through the lift and the
@@ -110,12 +122,7 @@ def test_fingertips_on_a_ball_wider_than_the_hand_drop_it(engine, name):
     assert result.outcome == "no_force_closure" and all("distal" in link for link in result.touched)
     check = make_check(engine, ball, HANDS[name], model_engine.model)
     opened = np.array([HANDS[name].preshape()[joint] for joint in model_engine.model.joints])
-    try:
-        found = [check.check(*pose(result))]
-        if engine == "mujoco":
-            found.append(check.check(*pose(result), open_joints=opened))
-    finally:
-        check.close()
+    found = starts(engine, check, result, opened)
     for physics in found:
         assert physics.outcome in ("dropped", "no_grasp") and not physics.success
         assert np.isnan(physics.slip_m) or physics.slip_m > 1.0  # it fell far
@@ -132,12 +139,7 @@ def test_pads_whose_edges_press_on_a_balls_upper_half_squeeze_it_out(engine):
     assert result.outcome == "no_force_closure" and set(result.touched) == {"left_pad", "right_pad"}
     assert (result.contact_points[:, 2] > 0.01).all()  # on the upper half
     check = make_check(engine, ball, HANDS["parallel_jaw"], model_engine.model)
-    try:
-        found = [check.check(*pose(result))]
-        if engine == "mujoco":
-            found.append(check.check(*pose(result), open_joints=opened))
-    finally:
-        check.close()
+    found = starts(engine, check, result, opened)
     assert all(physics.outcome in ("no_grasp", "dropped") for physics in found)
 
 
@@ -209,6 +211,7 @@ def test_the_model_holds_the_parts_the_mass_and_the_coupling():
     np.testing.assert_allclose(inertia, [mass * 0.04**2 / 6] * 3 + [0.0] * 3, atol=1e-12)
     halves = [shape.vertices[shape.vertices[:, 0] <= 0], shape.vertices[shape.vertices[:, 0] >= 0]]
     settings = MujocoSettings.defaults()
+    assert settings == MujocoSettings.from_params(CheckParams(), SimulateParams().mu)  # the params' defaults
     spec = build_spec(hand, model, halves, mass_kg=mass, centre=centre, inertia=inertia, settings=settings)
     compiled = spec.compile()
     body = compiled.body("object")
