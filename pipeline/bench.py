@@ -21,7 +21,6 @@ from .hands import HANDS
 from .mat import reconstruct
 from .medial_axis import medial_axis
 from .params import CandidatesParams, ClassifyParams, MatParams, MedialAxisParams, Params, SampleParams, SimulateParams
-from .legacy_trial import GraspWorld
 from .sampling import sample_object
 from .simulation import GraspEngine
 from .symmetry import classify
@@ -225,11 +224,11 @@ def _trial_trace(result):
 
 def run_trial_bench(*, trials=512, reference_trials=60, out=print):
     """Grasp trials per second per hand on a ~17k-triangle duck, the engine
-    (:mod:`pipeline.simulation`, batched) beside the one it replaced (:mod:`pipeline.legacy_trial`,
-    one trial at a time; box-link hands only) on the same random MAT candidates, one core; where
-    the new engine's time goes; its outcomes against the old one's and, on the first
-    ``reference_trials``, against :mod:`pipeline.reference_trial` (pybullet's exact queries, the
-    same protocol) as confusion tables; and every core through the worker pool. Returns the rows."""
+    (:mod:`pipeline.simulation`, batched) on random MAT candidates, one core; where its time
+    goes; its outcomes and, on the first ``reference_trials``, their confusion table against
+    :mod:`pipeline.reference_trial` (pybullet's exact queries, the same protocol); and every core
+    through the worker pool. Returns the rows. (The engine it replaced, one pybullet trial at a
+    time, is gone; its rates beside this one's are in docs/benchmarks.md.)"""
     from .reference_trial import ReferenceEngine
 
     artefacts, faces = trial_bench_chain()
@@ -237,10 +236,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
     cores = default_workers(0)
     settings = SimulateParams().world_settings()
     out(f"grasp trials on the duck ({faces} triangles), {trials} random MAT candidates per hand; all cores = {cores}")
-    out(
-        f"{'hand':13} {'old /s':>7} {'new /s':>7} {'ratio':>6} {'new all':>8}  new: s in place/retreat/approach/"
-        "closing/contacts; outcomes new (old)"
-    )
+    out(f"{'hand':13} {'trials/s':>8} {'all cores':>9}  s in place/retreat/approach/closing/contacts; outcomes")
     rows = []
     for name, hand in HANDS.items():
         table, targets, engine = _warm_engine(surface, symmetry, hand, trials, settings)
@@ -252,41 +248,25 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
             for result in engine.run(*(values[first : first + CHUNK] for values in targets))
         ]
         new_rate = len(table) / (time.perf_counter() - start)
-        old, old_rate = None, float("nan")
-        if hand.urdf is None:  # the old engine takes only box-link hands
-            world = GraspWorld(surface, hand)
-            start = time.perf_counter()
-            old = [world.trial(*target) for target in zip(*targets)]
-            old_rate = len(table) / (time.perf_counter() - start)
-            world.close()
         repeated = pd.concat([table] * 2 * cores, ignore_index=True)
         start = time.perf_counter()
         run_trials(surface, [hand], [(0, repeated)], settings, workers=cores)
         all_rate = len(repeated) / (time.perf_counter() - start)
         outcomes = Counter(result.outcome for result in new)
-        confusion = Counter((result.outcome, before.outcome) for result, before in zip(new, old)) if old else {}
         share = "/".join(f"{seconds:.1f}" for seconds in engine.seconds.values())
         row = dict(
             hand=name,
             trials=len(table),
-            old_per_s=round(old_rate, 1),
             new_per_s=round(new_rate, 1),
-            ratio=round(new_rate / old_rate, 2) if old else None,
             new_all_cores_per_s=round(all_rate, 1),
             seconds=engine.seconds,
             outcomes=dict(outcomes),
-            confusion={f"{a} | {b}": n for (a, b), n in sorted(confusion.items())},
         )
         rows.append(row)
         out(
-            f"{name:13} {old_rate:7.1f} {new_rate:7.1f} {row['ratio'] or float('nan'):6.2f} {all_rate:8.1f}  {share}; "
-            + ", ".join(
-                f"{key} {value}" + (f" ({sum(n for (a, b), n in confusion.items() if b == key)})" if old else "")
-                for key, value in sorted(outcomes.items())
-            )
+            f"{name:13} {new_rate:8.1f} {all_rate:9.1f}  {share}; "
+            + ", ".join(f"{key} {value}" for key, value in sorted(outcomes.items()))
         )
-        if old:
-            out("    new | old: " + ", ".join(f"{a} | {b}: {n}" for (a, b), n in sorted(confusion.items())))
         if not reference_trials:
             continue
         reference = ReferenceEngine(surface, hand, **settings)
@@ -302,7 +282,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
             reference_confusion={f"{a} | {b}": n for (a, b), n in sorted(against.items())},
         )
         out(
-            f"    new | reference (pybullet, {reference_rate:.1f} trials/s): agree {agree}/{len(checked)}; "
+            f"    engine | reference (pybullet, {reference_rate:.1f} trials/s): agree {agree}/{len(checked)}; "
             + ", ".join(f"{a} | {b}: {n}" for (a, b), n in sorted(against.items()))
         )
         for number, (result, other) in enumerate(zip(new, checked)):
