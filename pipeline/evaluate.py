@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from .errors import BadInputError, BadParamsError
+from .grasp_checks import PHYSICS_CHECKS
 from .kinematics import link_poses
 from .proximity import collides
 from .simulation import GraspEngine, TrialResult
@@ -196,8 +197,6 @@ class Labeller:
             )
         else:
             frame["robust_fc"] = frame["robust_epsilon"] = np.nan
-        from .grasp_checks import PHYSICS_CHECKS
-
         for check, engines in PHYSICS_CHECKS.items():
             engine = self.checks.get(engines[0])
             physics = [("no_grasp" if engine else "", np.nan, np.nan)] * len(results)
@@ -389,7 +388,7 @@ def verdict_settings(grasp_set, params, *, engine=None):
     mujoco = MujocoSettings.from_params(checks, mu)
     physics = {}
     if checks.physics:
-        physics = {name: settings_of for name, settings_of in (("pybullet", mujoco.physics), ("mujoco", mujoco))}
+        physics = {"pybullet": mujoco.physics, "mujoco": mujoco}
         physics = {name: value for name, value in physics.items() if engine in (name, "both")}
     robust = {
         "samples": checks.robust_samples,
@@ -406,14 +405,10 @@ QUALITY_COLUMNS = (
     "epsilon",
     "robust_fc",
     "robust_epsilon",
-    *(
-        f"{check}_{column}"
-        for check in ("physics", "mujoco", "mujoco_open")
-        for column in ("success", "slip_m", "turn_rad")
-    ),
+    *(f"{check}_{column}" for check in PHYSICS_CHECKS for column in ("success", "slip_m", "turn_rad")),
 )
 #: the verdicts' outcome strings written beside them
-OUTCOME_COLUMNS = ("outcome", "physics_outcome", "mujoco_outcome", "mujoco_open_outcome")
+OUTCOME_COLUMNS = ("outcome", *(f"{check}_outcome" for check in PHYSICS_CHECKS))
 
 
 def write_labels(out, grasp_set, table, found, *, meta):
@@ -438,7 +433,7 @@ def write_labels(out, grasp_set, table, found, *, meta):
     for column in QUALITY_COLUMNS:
         full[column] = np.nan
         full.loc[table.grasp.to_numpy(), column] = table[column].to_numpy(float)
-    for check in ("physics", "mujoco", "mujoco_open"):  # a check that did not run says nothing
+    for check in PHYSICS_CHECKS:  # a check that did not run says nothing
         full.loc[table.grasp.to_numpy()[table[f"{check}_outcome"].to_numpy() == ""], f"{check}_success"] = np.nan
     written = [out / "labels.parquet"]
     write_table(written[0], table)
