@@ -6,9 +6,9 @@ import json
 import sys
 from pathlib import Path
 
-from .stage_io import PARAMS_FILE, one_line_errors, progress_bar
 from .errors import BadInputError, BadParamsError
 from .params import Params, load_params
+from .stage_io import PARAMS_FILE, one_line_errors, progress_bar
 
 PARAMS_HELP = f"params file (default: {PARAMS_FILE} in the current folder if present, else built-in defaults)"
 
@@ -31,7 +31,7 @@ def _subcommand(commands, name, *, help, description, examples):
 
 @one_line_errors
 def main(argv=None):
-    from .hands import HANDS
+    from .hands.spec import HANDS
 
     prog = _prog()
     parser = argparse.ArgumentParser(prog=prog, description=__doc__)
@@ -362,11 +362,11 @@ def _hands(args, parser):
     if not (args.render or args.export):
         parser.error("give --render DIR and/or --export HAND DIR")
     if args.export:
-        from .hands import export_hand, get_hand
+        from .hands.spec import export_hand, get_hand
 
         print(f"wrote {export_hand(get_hand(args.export[0]), args.export[1])}")
     if args.render:
-        from .render import render_builtin_hands
+        from .outputs.render import render_builtin_hands
 
         for path in render_builtin_hands(args.render):
             print(f"wrote {path}")
@@ -374,7 +374,7 @@ def _hands(args, parser):
 
 def _objects(args):
     from .artefacts import atomic_write
-    from .catalogue import entry_lines, figure_objects_following, folder_entries, replace_objects
+    from .geometry.catalogue import entry_lines, figure_objects_following, folder_entries, replace_objects
 
     params_path = args.write or (PARAMS_FILE if Path(PARAMS_FILE).is_file() else None)
     entries = folder_entries(
@@ -426,8 +426,8 @@ def _command_params(args):
 
 def _batch(args):
     from .batch import find_meshes, run_batch
-    from .hands import get_hand
-    from .objects import select_meshes
+    from .geometry.objects import select_meshes
+    from .hands.spec import get_hand
 
     params = _command_params(args)
     for hand in args.hand:
@@ -484,8 +484,8 @@ def _plan(args):
         print(f"warning: {line}", file=sys.stderr)
     write_plan(args.out, artefacts, result)
     if args.record:
-        from .hands import get_hand
-        from .recording import record_chain
+        from .hands.spec import get_hand
+        from .outputs.trial_recording import record_chain
 
         name = Path(args.mesh.split(":")[-1]).stem or "object"
         record_chain(
@@ -495,7 +495,7 @@ def _plan(args):
             result,
             name=name,
             hands=[get_hand(hand) for hand in hands],
-            settings=params.simulate.world_settings(),
+            settings=params.simulate,
         )
     brief = {**result["counts"], "classes": result["classes"], "candidates": result["candidates"]}
     if "trials" in result:
@@ -508,8 +508,8 @@ def _plan(args):
 def _export(args):
     import time
 
-    from .export import export, find_runs
-    from .hands import load_hand
+    from .hands.spec import load_hand
+    from .outputs.export import export, find_runs
 
     start = time.perf_counter()
     hands = [load_hand(path) for path in args.hand]
@@ -526,9 +526,9 @@ def _export(args):
 def _evaluate(args):
     import time
 
-    from .evaluate import agreement, agreement_text, label_grasps, sample_rows, verdict_settings, write_labels
-    from .grasp_sets import DATASET_GRIPPER, read_grasp_set
-    from .hands import get_hand
+    from .hands.spec import get_hand
+    from .outputs.evaluate import agreement, agreement_text, label_grasps, sample_rows, verdict_settings, write_labels
+    from .outputs.grasp_sets import DATASET_GRIPPER, read_grasp_set
     from .pool import default_workers
 
     start = time.perf_counter()
@@ -554,7 +554,7 @@ def _evaluate(args):
     print(
         f"evaluate {args.grasps}: {len(rows)} of {len(grasp_set)} grasps, hand {grasp_set.hand.name} "
         f"(gripper/type {grasp_set.gripper}), mass {'file' if grasp_set.mass_kg else 'density rule'}, "
-        f"mu {settings['mu']:g}, {workers} workers"
+        f"mu {settings.mu:g}, {workers} workers"
     )
     with progress_bar("evaluate", unit="grasp") as progress:
         table = label_grasps(
@@ -577,7 +577,7 @@ def _evaluate(args):
         "grasps": len(grasp_set),
         "labelled_grasps": len(rows),
         "seed": seed,
-        "mu": settings["mu"],
+        "mu": settings.mu,
         "mass_kg": grasp_set.mass_kg,
         "mass_rule": "the file's object/mass"
         if grasp_set.mass_kg is not None
@@ -586,9 +586,9 @@ def _evaluate(args):
         "robust_samples": robust["samples"],
     }
     if grasp_set.mass_kg is None:
-        from .physics import PhysicsSettings, object_mass
+        from .checks.physics import PhysicsSettings, object_mass
 
-        checked = PhysicsSettings(**params.checks.physics_settings(settings["mu"]))
+        checked = PhysicsSettings(**params.checks.physics_settings(settings.mu))
         meta["mass_kg"] = object_mass(checked, grasp_set.vertices, grasp_set.faces)
     written = write_labels(out, grasp_set, table, found, meta=meta)
     counts = table.outcome.value_counts().to_dict()
@@ -600,10 +600,10 @@ def _evaluate(args):
 
 
 def _ablate(args):
-    from .ablate import ablate
     from .artefacts import atomic_write
+    from .checks.ablate import ablate
     from .errors import BadParamsError
-    from .hands import get_hand
+    from .hands.spec import get_hand
     from .pool import default_workers
 
     if (args.mesh is None) == (args.from_data is None):
@@ -647,7 +647,7 @@ def _ablation_inputs(args, params, seed, hands):
         import pandas as pd
 
         from .artefacts import SurfaceSamples, read_table
-        from .hands import get_hand
+        from .hands.spec import get_hand
 
         folder = Path(args.from_data)
         surface = SurfaceSamples.load(folder / "surface.npz")
@@ -656,7 +656,7 @@ def _ablation_inputs(args, params, seed, hands):
         )
         parts = None
         if (folder / "parts.npz").is_file():  # the decompose stage's convex parts
-            from .physics import ConvexParts
+            from .checks.physics import ConvexParts
 
             parts = ConvexParts.load(folder / "parts.npz").parts
         return str(folder), surface, candidates, parts

@@ -23,9 +23,9 @@ then ``os.replace``), loadable without pickle. Keys, all in metres and radians, 
     (cells + 1,) int64.
 
 ``Symmetry`` (``symmetry.npz``, stage ``classify``)
-    see :class:`pipeline.symmetry.Symmetry`.
+    see :class:`pipeline.geometry.symmetry.Symmetry`.
 ``candidates.parquet`` (stage ``candidates``)
-    one row per candidate grasp and hand; columns in :data:`pipeline.candidates.COLUMNS`.
+    one row per candidate grasp and hand; columns in :data:`pipeline.geometry.candidates.COLUMNS`.
 
 Every file also holds ``schema`` (:data:`SCHEMA_VERSION`), ``kind`` and ``key``: a content
 hash of the stage's inputs and params, so a batch runner can tell a result is reusable.
@@ -245,7 +245,7 @@ class MedialSpheres(_Artefact):
 
 @dataclass(frozen=True)
 class SphereGrid(_Artefact):
-    """Medial spheres sorted into the cubic cell grid of eq. 1 (see :mod:`pipeline.sphere_grid`)."""
+    """Medial spheres sorted into the cubic cell grid of eq. 1 (see :mod:`pipeline.geometry.sphere_grid`)."""
 
     centers: np.ndarray
     radii: np.ndarray

@@ -30,7 +30,7 @@ import pandas as pd
 
 from .artefacts import SCHEMA_VERSION, content_key, write_table
 from .errors import BadInputError, PipelineError
-from .objects import mesh_files, source_key
+from .geometry.objects import mesh_files, source_key
 
 SUMMARY_COLUMNS = {
     "object": str,
@@ -99,7 +99,7 @@ def object_key(path, *, scale, seed, hands, params):
     }
     used["candidates"].pop("hands")
     used["simulate"].pop("workers")  # results do not depend on it
-    from .hands import get_hand
+    from .hands.spec import get_hand
 
     specs = [dataclasses.asdict(get_hand(hand)) for hand in hands]  # an edited spec file changes the key
     return content_key(
@@ -113,10 +113,10 @@ def plan_object(name, path, *, scale, seed, hands, params):
     """Run the chain on one mesh, one process: (summary row, trials table or None).
 
     A :class:`PipelineError` (a refused mesh, ...) gives an ``error`` row with its message."""
-    from .grasp_checks import summary as checks_summary
-    from .grasp_checks import with_checks
+    from .checks.protocol import summary as checks_summary
+    from .checks.protocol import with_checks
     from .plan import run_chain
-    from .trials import summary
+    from .trial.protocol import summary
 
     start = time.perf_counter()
     row = {"object": name, "source": str(path)}
@@ -126,7 +126,7 @@ def plan_object(name, path, *, scale, seed, hands, params):
         return {**row, "status": "error", "reason": str(err), "seconds": time.perf_counter() - start}, None
     trials = artefacts["trials"]
     result, checked = summary(trials), checks_summary(artefacts["check"])
-    mat, baseline = result, result["baseline"]  # no trials: NaN rates, not 0 % (trials.summarise)
+    mat, baseline = result, result["baseline"]  # no trials: NaN rates, not 0 % (pipeline.trial.protocol.trial_rates)
 
     row.update(
         status="ok",

@@ -13,19 +13,19 @@ from collections import Counter
 import numpy as np
 import pandas as pd
 
-from . import sphere_grid
-from .artefacts import atomic_write
 from .arrays import vectors
-from .candidates import generate, generate_for_hands
-from .hands import HANDS
-from .mat import reconstruct
-from .medial_axis import medial_axis
+from .artefacts import atomic_write
+from .geometry import sphere_grid
+from .geometry.candidates import generate, generate_for_hands
+from .geometry.mat import reconstruct
+from .geometry.medial_axis import medial_axis
+from .geometry.sampling import sample_object
+from .geometry.symmetry import classify
+from .hands.spec import HANDS
 from .params import CandidatesParams, ClassifyParams, MatParams, MedialAxisParams, Params, SampleParams, SimulateParams
-from .sampling import sample_object
-from .simulation import GraspEngine
-from .symmetry import classify
 from .pool import default_workers
-from .trials import CHUNK, run_trials
+from .trial.engine import GraspEngine
+from .trial.protocol import CHUNK, run_trials
 
 BOX_HALF = np.array([0.05, 0.03, 0.01])
 CAPSULE_RADIUS, CAPSULE_HALF_LENGTH = 0.02, 0.05
@@ -188,7 +188,7 @@ def trial_bench_chain():
     import tempfile
     from pathlib import Path
 
-    from .objects import load_source
+    from .geometry.objects import load_source
     from .plan import run_chain
 
     _, mesh = load_source("pybullet:duck.obj", scale=0.06)
@@ -206,7 +206,7 @@ def _warm_engine(surface, symmetry, hand, trials, settings):
     table = generate(symmetry, hand)
     table = table.sample(min(trials, len(table)), random_state=0).reset_index(drop=True)
     targets = (vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), list(table.preshape))
-    engine = GraspEngine(surface, hand, **settings)
+    engine = GraspEngine(surface, hand, settings)
     # numba loads its compiled kernels on their first call (about 0.3 s a process, once): part
     # of the start-up (measured through the pool in the trial table), not of the trials
     engine.run(*(values[:2] for values in targets))
@@ -224,17 +224,17 @@ def _trial_trace(result):
 
 def run_trial_bench(*, trials=512, reference_trials=60, out=print):
     """Grasp trials per second per hand on a ~17k-triangle duck, the engine
-    (:mod:`pipeline.simulation`, batched) on random MAT candidates, one core; where its time
+    (:mod:`pipeline.trial.engine`, batched) on random MAT candidates, one core; where its time
     goes; its outcomes and, on the first ``reference_trials``, their confusion table against
-    :mod:`pipeline.reference_trial` (pybullet's exact queries, the same protocol); and every core
+    :mod:`pipeline.trial.reference` (pybullet's exact queries, the same protocol); and every core
     through the worker pool. Returns the rows. (The engine it replaced, one pybullet trial at a
     time, is gone; its rates beside this one's are in docs/benchmarks.md.)"""
-    from .reference_trial import ReferenceEngine
+    from .trial.reference import ReferenceEngine
 
     artefacts, faces = trial_bench_chain()
     surface, symmetry = artefacts["sample"], artefacts["classify"]
     cores = default_workers(0)
-    settings = SimulateParams().world_settings()
+    settings = SimulateParams()
     out(f"grasp trials on the duck ({faces} triangles), {trials} random MAT candidates per hand; all cores = {cores}")
     out(f"{'hand':13} {'trials/s':>8} {'all cores':>9}  s in place/retreat/approach/closing/contacts; outcomes")
     rows = []
@@ -269,7 +269,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
         )
         if not reference_trials:
             continue
-        reference = ReferenceEngine(surface, hand, **settings)
+        reference = ReferenceEngine(surface, hand, settings)
         start = time.perf_counter()
         checked = reference.run(*(values[:reference_trials] for values in targets))
         reference_rate = len(checked) / (time.perf_counter() - start)
@@ -299,14 +299,14 @@ def run_check_bench(*, trials=256, physics=100, robust=32, samples=16, out=print
     MuJoCo's of the same from the closed pose and from the open hand (checks/s, CPU ms a check,
     held), and robust force closure of the first ``robust`` (``samples`` noisy copies each:
     copies/s). Also the duck's V-HACD time. Returns the rows."""
-    from .grasp_checks import CLOSED
-    from .mujoco_check import MujocoCheck
-    from .physics import PhysicsCheck, decompose
-    from .robust import robust_force_closure
+    from .checks.mujoco_check import MujocoCheck
+    from .checks.physics import PhysicsCheck, decompose
+    from .trial.engine import CLOSED
+    from .checks.robust import robust_force_closure
 
     artefacts, faces = trial_bench_chain()
     surface, symmetry = artefacts["sample"], artefacts["classify"]
-    settings = SimulateParams().world_settings()
+    settings = SimulateParams()
     start = time.perf_counter()
     parts = decompose(surface)
     vhacd = time.perf_counter() - start
@@ -380,7 +380,7 @@ def run_check_bench(*, trials=256, physics=100, robust=32, samples=16, out=print
 def run_evaluate_bench(*, grasps=64, out=print):
     """``evaluate``'s labelling beside plain trials, one core, on the bench's duck: per hand,
     the closed poses and open joints of the first ``grasps`` MAT trials that closed (what an
-    export of them holds) labelled by :class:`pipeline.evaluate.Labeller` at the default params
+    export of them holds) labelled by :class:`pipeline.outputs.evaluate.Labeller` at the default params
     (closed in place, ``checks.robust_samples`` noisy copies, the lift-and-shakes of
     ``checks.engine`` on those that closed): grasps/s with every verdict and with the close in
     place alone, beside the trials/s of the same candidates. Returns the rows."""
@@ -388,8 +388,9 @@ def run_evaluate_bench(*, grasps=64, out=print):
 
     from scipy.spatial.transform import Rotation
 
-    from .evaluate import CLOSED, Labeller, verdict_settings
-    from .physics import decompose
+    from .checks.physics import decompose
+    from .outputs.evaluate import Labeller, verdict_settings
+    from .trial.engine import CLOSED
 
     artefacts, faces = trial_bench_chain()
     surface, symmetry = artefacts["sample"], artefacts["classify"]
@@ -459,8 +460,9 @@ def run_recording_bench(*, trials=500, repeats=3, out=print):
     from pathlib import Path
 
     from .logbook import mcap_log
-    from .recording import log_candidates, log_spheres, log_surface, log_symmetry, log_trials, rerun_recording
-    from .trials import simulate
+    from .outputs.recording import log_candidates, log_spheres, log_surface, log_symmetry, rerun_recording
+    from .outputs.trial_recording import log_trials
+    from .trial.protocol import simulate
 
     def median_seconds(action, count):
         times = []

@@ -21,25 +21,17 @@ def _import_quietly():
 pybullet = _import_quietly()
 
 
-def load_hand(hand, client):
-    """Load ``hand``'s URDF (its file, the subtree from its ``base_link``, or a built-in's
-    generated text) as a fixed-base body."""
+def load_hand_body(hand, client):
+    """Load ``hand``'s URDF (:func:`pipeline.hands.spec.hand_urdf_text`: rooted at its base
+    frame) as a fixed-base body."""
     import tempfile
 
-    from .hands import urdf_text
+    from .hands.spec import hand_urdf_text
 
-    if hand.urdf is not None and hand.base_link is None:
-        return pybullet.loadURDF(hand.urdf, useFixedBase=True, physicsClientId=client)
-    if hand.urdf is not None:  # a hand that is part of a larger robot: its subtree alone
-        from .urdf import subtree_text
-
-        text = subtree_text(hand.urdf, hand.base_link)
-    else:
-        text = urdf_text(hand)
     descriptor, path = tempfile.mkstemp(suffix=".urdf")
     try:
         with os.fdopen(descriptor, "w") as stream:
-            stream.write(text)
+            stream.write(hand_urdf_text(hand))
         return pybullet.loadURDF(path, useFixedBase=True, physicsClientId=client)
     finally:
         os.unlink(path)

@@ -72,7 +72,7 @@ STAGES = (
         (),
         ("surface",),
         ("seed", "sample", "objects.${item.object}"),
-        "pipeline.sampling:sample_object",
+        "pipeline.geometry.sampling:sample_object",
         "sample",
         args=("object", "scale"),
     ),
@@ -81,17 +81,24 @@ STAGES = (
         ("surface",),
         ("medial_axis",),
         ("medial_axis",),
-        "pipeline.medial_axis:medial_axis",
+        "pipeline.geometry.medial_axis:medial_axis",
         "medial_axis",
     ),
-    Stage("mat", ("surface", "medial_axis"), ("spheres",), ("mat",), "pipeline.mat:reconstruct", "mat"),
-    Stage("sphere_grid", ("spheres",), ("sphere_grid",), ("sphere_grid",), "pipeline.sphere_grid:build", "sphere_grid"),
+    Stage("mat", ("surface", "medial_axis"), ("spheres",), ("mat",), "pipeline.geometry.mat:reconstruct", "mat"),
+    Stage(
+        "sphere_grid",
+        ("spheres",),
+        ("sphere_grid",),
+        ("sphere_grid",),
+        "pipeline.geometry.sphere_grid:build",
+        "sphere_grid",
+    ),
     Stage(
         "classify",
         ("sphere_grid",),
         ("symmetry",),
         ("record", "classify"),
-        "pipeline.symmetry:classify",
+        "pipeline.geometry.symmetry:classify",
         "classify",
         recording="object.rrd",
         recorded=("surface",),
@@ -101,7 +108,7 @@ STAGES = (
         ("surface",),
         ("concavities",),
         ("seed", "record", "sample", "medial_axis", "mat", "sphere_grid", "classify", "concavity"),
-        "pipeline.concavity:encompass",
+        "pipeline.geometry.concavity:encompass",
         "concavity",
         recording="concavity.rrd",
     ),
@@ -115,7 +122,7 @@ STAGES = (
             "candidates.centre_rims",
             "concavity.max_width_ratio",
         ),
-        "pipeline.candidates:generate_for_hands",
+        "pipeline.geometry.candidates:generate_for_hands",
         args=("hand",),
         per_hand=True,
     ),
@@ -124,7 +131,7 @@ STAGES = (
         ("surface", "candidates"),
         ("trials", "contacts"),
         ("record", "seed", "simulate"),
-        "pipeline.trials:simulate",
+        "pipeline.trial.protocol:simulate",
         args=("hand",),
         per_hand=True,
         recording="grasps.rrd",
@@ -134,14 +141,14 @@ STAGES = (
         ("surface",),
         ("parts",),
         ("checks.vhacd_resolution",),
-        "pipeline.physics:decompose",
+        "pipeline.checks.physics:decompose",
     ),
     Stage(
         "check",
         ("surface", "trials", "parts"),
         ("checks",),
         ("seed", "simulate", "checks"),
-        "pipeline.grasp_checks:check_trials",
+        "pipeline.checks.protocol:check_trials",
         "checks",
         args=("hand",),
         per_hand=True,
@@ -182,39 +189,62 @@ def function(entry):
     return getattr(importlib.import_module(module), name)
 
 
+def _module_file(parts):
+    """The source file of module ``pipeline.<parts>`` (a package's ``__init__.py``), or None."""
+    base = ROOT.joinpath("pipeline", *parts)
+    for path in (base / "__init__.py", base.with_suffix(".py")):
+        if parts and path.is_file():
+            return path
+    return None
+
+
+def module_path(name):
+    """Repository-relative source file of the module ``name`` (``pipeline.trial.engine``; a
+    package's ``__init__.py``)."""
+    return str(_module_file(name.split(".")[1:]).relative_to(ROOT)) if "." in name else "pipeline/__init__.py"
+
+
 def _imported(path):
-    """``pipeline`` modules (names) that the source file ``path`` imports anywhere in it."""
-    tree = ast.parse(Path(path).read_text(), filename=str(path))
-    inside = Path(path).parent.name == "pipeline"
+    """``pipeline`` modules (tuples of names below ``pipeline``) that the source file ``path``
+    imports anywhere in it; ``from package import module`` counts the module too."""
+    path = Path(path).resolve()
+    tree = ast.parse(path.read_text(), filename=str(path))
+    inside = (ROOT / "pipeline") in path.parents
+    package = list(path.relative_to(ROOT / "pipeline").parent.parts) if inside else None
     found = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            found.update(alias.name.split(".")[1] for alias in node.names if alias.name.startswith("pipeline."))
-        elif isinstance(node, ast.ImportFrom):
-            if node.level == 1 and inside:
-                module = node.module or ""
-            elif node.level == 0 and (node.module or "").split(".")[0] == "pipeline":
-                module = node.module.removeprefix("pipeline").lstrip(".")
-            else:
-                continue
-            if module:
-                found.add(module.split(".")[0])
-            else:  # from pipeline import sphere_grid
-                found.update(alias.name for alias in node.names if (ROOT / "pipeline" / f"{alias.name}.py").is_file())
-    return found
+            found.update(tuple(a.name.split(".")[1:]) for a in node.names if a.name.startswith("pipeline."))
+            continue
+        if not isinstance(node, ast.ImportFrom):
+            continue
+        if node.level and inside:
+            base = package[: len(package) - (node.level - 1)]
+        elif node.level == 0 and (node.module or "").split(".")[0] == "pipeline":
+            base = []
+        else:
+            continue
+        module = base + [part for part in (node.module or "").split(".") if part and part != "pipeline"]
+        if module:
+            found.add(tuple(module))
+        found.update(tuple(module + [alias.name]) for alias in node.names if _module_file(module + [alias.name]))
+    return {parts for parts in found if _module_file(list(parts))}
 
 
 @functools.cache
 def code_deps(name):
     """Repository-relative source files stage ``name`` can run: ``stages/<name>.py``, the
-    ``pipeline`` package's ``__init__.py`` and every ``pipeline`` module it imports, transitively."""
+    ``pipeline`` package's ``__init__.py`` and every ``pipeline`` module it imports, transitively,
+    with the ``__init__.py`` of each sub-package on the way (Python runs them)."""
     seen, todo = set(), sorted(_imported(ROOT / "stages" / f"{name}.py"))
     while todo:
         module = todo.pop()
         if module not in seen:
             seen.add(module)
-            todo += sorted(_imported(ROOT / "pipeline" / f"{module}.py") - seen)
-    return (f"stages/{name}.py", "pipeline/__init__.py") + tuple(f"pipeline/{module}.py" for module in sorted(seen))
+            todo += sorted(_imported(_module_file(list(module))) - seen)
+            todo += [module[:depth] for depth in range(1, len(module)) if module[:depth] not in seen]
+    files = {str(_module_file(list(module)).relative_to(ROOT)) for module in seen}
+    return (f"stages/{name}.py", "pipeline/__init__.py") + tuple(sorted(files))
 
 
 def fingerprint_path(name):

@@ -12,7 +12,6 @@ import hashlib
 import json
 import time
 
-
 from .artefacts import atomic_path, json_ready
 
 _NUMBER = {"type": "number"}

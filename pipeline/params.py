@@ -17,7 +17,6 @@ import yaml
 
 from .errors import BadParamsError
 
-
 #: ``checks.engine``: which lift-and-shake checks run
 ENGINES = ("pybullet", "mujoco", "both")
 
@@ -56,7 +55,7 @@ class MedialAxisParams:
     method: str = "shrinking_ball"
     """``shrinking_ball`` (default, Ma et al. 2012) or ``voronoi_poles`` (Qhull inner poles, reference)."""
     kdtree_eps: float = 4.0
-    """Approximate-NN slack of the growing pass (facts.md 5: exact queries stall on tubes); the
+    """Approximate-NN slack of the growing pass (exact queries stall on tubes); the
     exact polish of the merged balls restores full accuracy, so a loose slack only saves time."""
     min_chord_factor: float = 4.0
     """Stop shrinking when the two contacts are closer than this many median sample spacings."""
@@ -161,7 +160,7 @@ class ClassifyParams:
 @dataclass(frozen=True)
 class ConcavityParams:
     """Concavities and the grasps that encompass them (stage ``concavity``,
-    :mod:`pipeline.concavity`; the paper's section V)."""
+    :mod:`pipeline.geometry.concavity`; the paper's section V)."""
 
     enabled: bool = True
     """False: no concavities, no ``encompassing`` candidates (the concavity artefacts are empty)."""
@@ -185,7 +184,7 @@ class CandidatesParams:
     """Candidate grasps (stage ``candidates``, paper III-C)."""
 
     hands: list = field(default_factory=lambda: ["armar3", "barrett"])
-    """Hands to plan and simulate for: built-in names or paths to hand specs (see :mod:`pipeline.hands`)."""
+    """Hands to plan and simulate for: built-in names or paths to hand specs (see :mod:`pipeline.hands.spec`)."""
     approach_directions: int = 4
     """Approach directions around a symmetry axis (Simox default 4)."""
     flipped_candidates: bool = True
@@ -196,7 +195,7 @@ class CandidatesParams:
     narrower than the hand); false: P_g at the sphere centre, as the paper."""
 
     def __post_init__(self):
-        from .hands import HANDS, is_spec_path
+        from .hands.spec import HANDS, is_spec_path
 
         _require(
             isinstance(self.hands, list) and self.hands and all(h in HANDS or is_spec_path(h) for h in self.hands),
@@ -211,7 +210,7 @@ class CandidatesParams:
 
 @dataclass(frozen=True)
 class SimulateParams:
-    """Grasp trials (stage ``simulate``, paper IV; see :mod:`pipeline.simulation`)."""
+    """Grasp trials (stage ``simulate``, paper IV; see :mod:`pipeline.trial.engine`)."""
 
     spheres_per_object: int = 200
     """Random spheres (with candidates) per hand; all their candidates are tried (the paper's 200)."""
@@ -315,21 +314,12 @@ class SimulateParams:
             _require(isinstance(getattr(self, key), bool), "simulate", key, "must be true or false")
         _require(self.workers >= 0, "simulate", "workers", "must be >= 0")
 
-    def world_settings(self):
-        """Keyword arguments of :class:`pipeline.simulation.GraspEngine` (its TrialSettings):
-        every field but the protocol's."""
-        return {
-            field.name: getattr(self, field.name)
-            for field in dataclasses.fields(self)
-            if field.name not in ("spheres_per_object", "baseline_trials", "workers")
-        }
-
 
 @dataclass(frozen=True)
 class CheckParams:
     """How well the analytic score predicts holding (stages ``decompose`` and ``check``, issue
     15): a seeded sample of each run's trials gets the pybullet lift-and-shake check
-    (:mod:`pipeline.physics`) and robust force closure (:mod:`pipeline.robust`)."""
+    (:mod:`pipeline.checks.physics`) and robust force closure (:mod:`pipeline.checks.robust`)."""
 
     trials: int = 25
     """Trials checked per run (object, scale, hand) and planner, a seeded sample; -1 = every
@@ -337,8 +327,8 @@ class CheckParams:
     physics: bool = True
     """The lift-and-shake check (``physics_*``, ``mujoco_*`` columns); false: they are empty."""
     engine: str = "both"
-    """Which lift-and-shake: ``pybullet`` (:mod:`pipeline.physics`: ``physics_*`` columns),
-    ``mujoco`` (:mod:`pipeline.mujoco_check`: ``mujoco_*`` from the closed pose and
+    """Which lift-and-shake: ``pybullet`` (:mod:`pipeline.checks.physics`: ``physics_*`` columns),
+    ``mujoco`` (:mod:`pipeline.checks.mujoco_check`: ``mujoco_*`` from the closed pose and
     ``mujoco_open_*`` from the open hand) or ``both``."""
     payload_kg: float = 0.1
     """The graspable-mass rule: the checked object weighs its mesh volume times
@@ -407,7 +397,7 @@ class CheckParams:
             _require(getattr(self, key) >= 0, "checks", key, "must be >= 0")
 
     def physics_settings(self, mu):
-        """Keyword arguments of :class:`pipeline.physics.PhysicsSettings` (friction ``mu``)."""
+        """Keyword arguments of :class:`pipeline.checks.physics.PhysicsSettings` (friction ``mu``)."""
         names = (
             "density_kg_m3",
             "open_back",

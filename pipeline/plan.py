@@ -6,18 +6,19 @@ from pathlib import Path
 
 import numpy as np
 
+from . import seeds
 from .artefacts import atomic_write, json_bytes, write_table
-from .concavity import SECTIONS as CONCAVITY_SECTIONS
+from .checks.protocol import summary as checks_summary
 from .dag import ARTEFACTS, STAGES
 from .dag import function as stage_function
-from .hands import get_hand
-from .objects import RepairWarning, source_key
+from .geometry.concavity import SECTIONS as CONCAVITY_SECTIONS
+from .geometry.objects import RepairWarning, source_key
+from .geometry.symmetry import CLASSES, INTERIOR
+from .hands.spec import get_hand
 from .params import Params
-from .stage_io import warning_line
-from .symmetry import CLASSES, INTERIOR
 from .pool import default_workers
-from .trials import summary as trial_summary
-from .grasp_checks import summary as checks_summary
+from .stage_io import warning_line
+from .trial.protocol import summary as trial_summary
 
 #: file of each artefact a chain run makes, by its key in :func:`run_chain`'s result: the stage
 #: that makes it (``trials`` and ``contacts`` by their own names), and its table name; files named
@@ -46,7 +47,7 @@ def run_chain(
     Parameters
     ----------
     source : str
-        See :mod:`pipeline.objects`.
+        See :mod:`pipeline.geometry.objects`.
     params : Params
     seed : int, optional
         Overrides ``params.seed``.
@@ -60,7 +61,7 @@ def run_chain(
     progress : callable(str), optional
         Called with a one-line message after each stage.
     trial_progress : callable(int, int), optional
-        Called with the trials just finished and the total (see :func:`pipeline.trials.simulate`).
+        Called with the trials just finished and the total (see :func:`pipeline.trial.protocol.simulate`).
 
     Returns
     -------
@@ -75,7 +76,7 @@ def run_chain(
             source=source,
             scale=scale,
             shape=shape,
-            rng=np.random.default_rng(seed),
+            rng=seeds.surface_samples(seed),
             source_key=source_key(source, shape),
         ),
         "concavity": dict(
@@ -95,14 +96,14 @@ def run_chain(
             baseline_trials=params.simulate.baseline_trials,
             seed=seed,
             workers=default_workers(params.simulate.workers if workers is None else workers),
-            settings=params.simulate.world_settings(),
+            settings=params.simulate,
             progress=trial_progress,
         ),
         "decompose": dict(vhacd_resolution=params.checks.vhacd_resolution),
         "check": dict(
             hands=hand_specs,
             seed=seed,
-            settings=params.simulate.world_settings(),
+            settings=params.simulate,
             workers=default_workers(params.simulate.workers if workers is None else workers),
         ),
     }

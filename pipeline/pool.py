@@ -11,7 +11,7 @@ import multiprocessing
 import os
 
 #: what the server imports before forking workers (the engine's lazy imports included)
-PRELOAD = ["pipeline.simulation", "open3d", "trimesh"]
+PRELOAD = ["pipeline.trial.engine", "open3d", "trimesh"]
 
 
 def default_workers(workers):

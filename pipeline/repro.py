@@ -48,10 +48,10 @@ def compile_kernels(hands):
     import numpy as np
 
     from .errors import PipelineError
-    from .hands import get_hand
+    from .geometry.sampling import sample_object
+    from .hands.spec import get_hand
     from .params import SampleParams
-    from .sampling import sample_object
-    from .simulation import GraspEngine
+    from .trial.engine import GraspEngine
 
     cube = sample_object(
         "primitive:box",

@@ -58,7 +58,7 @@ def stage_args(description, *names, argv=None):
 
 class StageRun:
     """What a running stage reports: counts and warnings for its MCAP log; its rerun recording
-    is written by :func:`pipeline.recording.record_stage` (see :func:`stage_run`)."""
+    is written by :func:`pipeline.outputs.recording.record_stage` (see :func:`stage_run`)."""
 
     def __init__(self, stage, log, rrd, recording_id, record, outputs):
         self.stage, self.log, self.rrd, self.recording_id, self.enabled = stage, log, rrd, recording_id, record

@@ -5,11 +5,11 @@ HAND is a built-in hand name or a hand spec file (one entry of params.yaml ``can
 """
 
 from pipeline.artefacts import write_table
-from pipeline.candidates import generate_for_hands
-from pipeline.concavity import Concavities
+from pipeline.geometry.candidates import generate_for_hands
+from pipeline.geometry.concavity import Concavities
+from pipeline.geometry.symmetry import Symmetry
+from pipeline.hands.spec import get_hand
 from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
-from pipeline.hands import get_hand
-from pipeline.symmetry import Symmetry
 
 
 @one_line_errors

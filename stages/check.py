@@ -2,7 +2,7 @@
 [--timing T.json] [--log L.mcap]
 
 A seeded sample of the hand's trials per planner: the lift-and-shake checks (pybullet, MuJoCo
-from the closed pose and from the open hand) and robust force closure (params ``checks``; see pipeline/grasp_checks.py).
+from the closed pose and from the open hand) and robust force closure (params ``checks``; see pipeline/checks/protocol.py).
 """
 
 import dataclasses
@@ -17,9 +17,9 @@ def main(argv=None):
     args = stage_args(__doc__, "surface", "trials", "parts", "hand", "checks", argv=argv)
     config = params()
     from pipeline.artefacts import SurfaceSamples, read_table, write_table
-    from pipeline.grasp_checks import check_trials, summary
-    from pipeline.hands import get_hand
-    from pipeline.physics import ConvexParts
+    from pipeline.checks.physics import ConvexParts
+    from pipeline.checks.protocol import check_trials, summary
+    from pipeline.hands.spec import get_hand
 
     used = {"seed": config.seed, "hand": args.hand, **dataclasses.asdict(config.checks)}
     inputs = [args.surface, args.trials, args.parts]
@@ -36,7 +36,7 @@ def main(argv=None):
                 parts,
                 hands=[get_hand(args.hand)],
                 seed=config.seed,
-                settings=config.simulate.world_settings(),
+                settings=config.simulate,
                 workers=default_workers(config.simulate.workers),
                 progress=progress,
                 **dataclasses.asdict(config.checks),

@@ -10,9 +10,9 @@ import dataclasses
 import numpy as np
 
 from pipeline.artefacts import SphereGrid, SurfaceSamples
+from pipeline.geometry.symmetry import CLASSES, classify
+from pipeline.outputs.recording import log_spheres, log_surface, log_symmetry, record_stage
 from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
-from pipeline.recording import log_spheres, log_surface, log_symmetry, record_stage
-from pipeline.symmetry import CLASSES, classify
 
 
 @one_line_errors

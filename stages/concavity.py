@@ -8,9 +8,9 @@ and the filled object's spheres inside them.
 import dataclasses
 
 from pipeline.artefacts import SurfaceSamples
-from pipeline.concavity import SECTIONS, encompass
 from pipeline.errors import BadInputError
-from pipeline.recording import log_concavities, log_surface, record_stage
+from pipeline.geometry.concavity import SECTIONS, encompass
+from pipeline.outputs.recording import log_concavities, log_surface, record_stage
 from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
 
 

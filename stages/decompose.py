@@ -4,7 +4,7 @@ The object's convex parts (pybullet's V-HACD), the dynamic body of the physics c
 """
 
 from pipeline.artefacts import SurfaceSamples
-from pipeline.physics import decompose
+from pipeline.checks.physics import decompose
 from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
 
 

@@ -5,8 +5,8 @@ import dataclasses
 import numpy as np
 
 from pipeline.artefacts import MedialAxis, SurfaceSamples
+from pipeline.geometry.mat import reconstruct
 from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
-from pipeline.mat import reconstruct
 
 
 @one_line_errors

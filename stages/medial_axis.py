@@ -3,8 +3,8 @@
 import dataclasses
 
 from pipeline.artefacts import SurfaceSamples
+from pipeline.geometry.medial_axis import medial_axis
 from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
-from pipeline.medial_axis import medial_axis
 
 
 @one_line_errors

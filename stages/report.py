@@ -20,10 +20,10 @@ def run_dir(data, name, scale, hand=None):
 
 @one_line_errors
 def main(argv=None):
-    from pipeline import report
     from pipeline.artefacts import atomic_write, json_bytes, read_table, write_table
     from pipeline.dag import ROOT, object_stage_file
     from pipeline.errors import ArtefactError, BadParamsError
+    from pipeline.outputs import report
 
     args = stage_args(__doc__, "data", "out", argv=argv)
     config = params()
@@ -94,11 +94,11 @@ def write_figures(data, out, config, trials, calibration):
     import pandas as pd
     from PIL import Image
 
-    from pipeline import figures
     from pipeline.artefacts import MedialSpheres, SurfaceSamples, atomic_write, read_table
-    from pipeline.concavity import Concavities
-    from pipeline.hands import get_hand
-    from pipeline.symmetry import Symmetry
+    from pipeline.geometry.concavity import Concavities
+    from pipeline.geometry.symmetry import Symmetry
+    from pipeline.hands.spec import get_hand
+    from pipeline.outputs import figures
 
     def save(image, name):
         buffer = io.BytesIO()

@@ -5,12 +5,12 @@ OBJECT names an entry of params.yaml ``objects``; SCALE (one of ``scales``) mult
 
 import dataclasses
 
-import numpy as np
 
-from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
+from pipeline import seeds
 from pipeline.errors import BadParamsError
-from pipeline.objects import parse_spec, source_key
-from pipeline.sampling import sample_object
+from pipeline.geometry.objects import parse_spec, source_key
+from pipeline.geometry.sampling import sample_object
+from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
 
 
 @one_line_errors
@@ -32,7 +32,7 @@ def main(argv=None):
             source,
             scale=scale * float(args.scale),
             shape=shape,
-            rng=np.random.default_rng(config.seed),
+            rng=seeds.surface_samples(config.seed),
             source_key=source_key(source, shape),
             **dataclasses.asdict(config.sample),
         )

@@ -20,9 +20,10 @@ def main(argv=None):
     if workers > 1:
         start()  # the trial workers' server imports the engine while this process reads its inputs
     from pipeline.artefacts import SurfaceSamples, read_table, write_table
-    from pipeline.hands import get_hand
-    from pipeline.recording import log_candidates, log_trials, record_stage
-    from pipeline.trials import simulate, summary
+    from pipeline.hands.spec import get_hand
+    from pipeline.outputs.recording import log_candidates, record_stage
+    from pipeline.outputs.trial_recording import log_trials
+    from pipeline.trial.protocol import simulate, summary
 
     used = {"seed": config.seed, "hand": args.hand, **dataclasses.asdict(config.simulate)}
     with stage_run(
@@ -44,7 +45,7 @@ def main(argv=None):
                 baseline_trials=config.simulate.baseline_trials,
                 seed=config.seed,
                 workers=workers,
-                settings=config.simulate.world_settings(),
+                settings=config.simulate,
                 progress=progress,
             )
         write_table(args.contacts, contacts)
@@ -62,7 +63,7 @@ def main(argv=None):
 
         def draw(stream, root):
             log_candidates(stream, root, candidates)
-            log_trials(stream, root, surface, hand, trials, contacts, settings=config.simulate.world_settings())
+            log_trials(stream, root, surface, hand, trials, contacts, settings=config.simulate)
 
         record_stage(run, draw)
     print(

@@ -2,8 +2,8 @@
 
 import dataclasses
 
-from pipeline import sphere_grid
 from pipeline.artefacts import MedialSpheres
+from pipeline.geometry import sphere_grid
 from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
 
 

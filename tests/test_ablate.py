@@ -1,4 +1,4 @@
-"""The ablation of the trial's modelling choices (pipeline.ablate, issue 15): the same
+"""The ablation of the trial's modelling choices (pipeline.checks.ablate, issue 15): the same
 candidates with one ``simulate`` setting switched at a time."""
 
 import dataclasses
@@ -11,10 +11,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pipeline.ablate import ablate, ablation_candidates, variant_params
-from pipeline.hands import HANDS
+from pipeline.checks.ablate import ablate, ablation_candidates, variant_params
+from pipeline.hands.spec import HANDS
 from pipeline.params import Params, SimulateParams
-from pipeline.trials import run_trials
+from pipeline.trial.protocol import run_trials
 from test_simulation import cube
 
 REPO = Path(__file__).resolve().parents[1]
@@ -59,7 +59,7 @@ def test_the_default_row_is_a_plain_run_of_the_same_candidates_and_mu_1_never_lo
     # the simulate stage's choice: 3 of the 4 spheres (12 candidates), as many baseline trials
     mat, baseline = ablation_candidates(cube(), candidates, JAW, params.simulate, seed=0)
     assert len(mat) == 12 == len(baseline) and (table.trials == 12).all()
-    plain = run_trials(cube(), [JAW], [(0, mat), (0, baseline)], params.simulate.world_settings())
+    plain = run_trials(cube(), [JAW], [(0, mat), (0, baseline)], params.simulate)
     for planner, results in zip(("mat", "baseline"), plain):
         row = table[(table.variant == "default") & (table.planner == planner)].iloc[0]
         closed = 100.0 * np.mean([result.outcome == "force_closure" for result in results])
@@ -95,7 +95,7 @@ def test_variants_keep_the_params_valid_and_a_repeated_variant_runs_once():
 
 
 def test_an_object_without_candidates_gives_an_empty_table_with_the_columns():
-    from pipeline.ablate import COLUMNS
+    from pipeline.checks.ablate import COLUMNS
 
     empty = jaw_candidates().iloc[:0]
     table = ablate(cube(), empty, [JAW], small_params(), physics_trials=0)
@@ -169,7 +169,7 @@ def test_help_has_a_description_and_an_example(capsys):
 
 
 def test_class_means_average_the_runs_of_a_class_and_skip_objects_without_trials():
-    from pipeline.ablate import COLUMNS, class_markdown, class_means
+    from pipeline.checks.ablate import COLUMNS, class_markdown, class_means
 
     def table(hand, default, switched):
         rows = []

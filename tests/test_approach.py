@@ -8,10 +8,10 @@ import pytest
 import yaml
 
 from pipeline.errors import BadParamsError
-from pipeline.hands import HANDS, export_hand, get_hand
+from pipeline.hands.spec import HANDS, export_hand, get_hand
 from pipeline.params import SimulateParams
-from pipeline.reference_trial import ReferenceEngine
-from pipeline.simulation import GraspEngine
+from pipeline.trial.engine import GraspEngine
+from pipeline.trial.reference import ReferenceEngine
 from test_simulation import cube, cylinder
 
 TOLERANCE = SimulateParams().contact_tolerance_m

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import trimesh
 import yaml
+
 from conftest import complete_params
 
 REPO = Path(__file__).resolve().parents[1]
@@ -181,7 +182,7 @@ def open_tube(radius=0.02, height=0.1, sections=128, wave=0.0):
 
 
 def test_planar_open_ends_are_capped():
-    from pipeline.objects import RepairWarning, cap_planar_holes, validate_mesh
+    from pipeline.geometry.objects import RepairWarning, cap_planar_holes, validate_mesh
 
     tube = open_tube()
     before = tube.vertices.copy(), tube.faces.copy()
@@ -209,7 +210,7 @@ def test_non_planar_open_end_is_rejected(tmp_path):
 def test_pybullet_mug_is_capped_and_united():
     # pybullet_data's objects/mug.obj: a watertight hollow cup and a handle tube whose two open
     # 12-gon ends (y = 0.0385 m) sit in the cup wall
-    from pipeline.objects import RepairWarning, cap_planar_holes, load_source, validate_mesh
+    from pipeline.geometry.objects import RepairWarning, cap_planar_holes, load_source, validate_mesh
 
     _, raw = load_source("pybullet:objects/mug.obj")
     raw = trimesh.Trimesh(raw.vertices, raw.faces)

@@ -13,12 +13,12 @@ from pathlib import Path
 import pandas as pd
 import pytest
 import yaml
-from conftest import complete_params
 
+from conftest import complete_params
 from pipeline.batch import find_meshes, plan_object, read_results, run_batch
+from pipeline.checks.protocol import with_checks
 from pipeline.errors import BadInputError
 from pipeline.params import load_params
-from pipeline.grasp_checks import with_checks
 from pipeline.plan import run_chain
 
 REPO = Path(__file__).resolve().parents[1]

@@ -4,7 +4,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pipeline.cell_grid import CellGrid
+from pipeline.geometry.cell_grid import CellGrid
 
 
 def brute_force(points, queries, radius):

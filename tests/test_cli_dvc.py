@@ -11,15 +11,15 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from conftest import complete_params
-from test_recording import instances, rows_of
 
+from conftest import complete_params
 from pipeline import dag
 from pipeline.artefacts import MedialSpheres
-from pipeline.grasp_checks import with_checks
+from pipeline.checks.protocol import with_checks
+from pipeline.geometry.objects import load_source
+from pipeline.geometry.symmetry import Symmetry
 from pipeline.logbook import file_digest, read_log
-from pipeline.objects import load_source
-from pipeline.symmetry import Symmetry
+from test_recording import instances, rows_of
 
 REPO = Path(__file__).resolve().parents[1]
 ENV = {**os.environ, "PYTHONPATH": str(REPO), "PATH": f"{Path(sys.executable).parent}:{os.environ['PATH']}"}
@@ -278,16 +278,18 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     # every stage ran only code among its deps (its log names the pipeline modules loaded)
     for path in logs.rglob("*.mcap"):
         loaded = dict(read_log(path))["/modules"]["modules"]
-        files = {f"pipeline/{name.split('.')[1]}.py" if "." in name else "pipeline/__init__.py" for name in loaded}
+        files = {dag.module_path(name) for name in loaded}
         assert "pipeline/params.py" in files and files <= set(dag.code_deps(path.stem)), (path, files)
 
     # editing a module makes DVC rerun exactly the stages that import it: the code stages that
     # list it first, then, through their new fingerprints, the matrix entries
-    quality = tmp_path / "pipeline" / "quality.py"
+    quality = tmp_path / "pipeline" / "trial" / "quality.py"
     original = quality.read_text()
     quality.write_text(original + "\n# edited\n")
     code_stages = {
-        f"dag/{entry.name}/dvc.yaml:code" for entry in dag.STAGES if "pipeline/quality.py" in dag.code_deps(entry.name)
+        f"dag/{entry.name}/dvc.yaml:code"
+        for entry in dag.STAGES
+        if "pipeline/trial/quality.py" in dag.code_deps(entry.name)
     }
     assert set(json.loads(run(dvc + ["status", "--json"], tmp_path).stdout)) == code_stages | {
         "dag/report/dvc.yaml:report"
@@ -314,7 +316,7 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     expected = {
         f"{entry.name}@{item}"
         for entry in dag.STAGES
-        if "pipeline/quality.py" in dag.code_deps(entry.name)
+        if "pipeline/trial/quality.py" in dag.code_deps(entry.name)
         for item in items[entry.name]
     } | {"report"}
     assert {"simulate@capsule-1.0-armar3", "classify@capsule-0.5"} <= stale == expected

@@ -12,14 +12,14 @@ import numpy as np
 import pytest
 
 from pipeline.artefacts import SurfaceSamples
-from pipeline.candidates import generate_for_hands
-from pipeline.concavity import Concavities, encompass
 from pipeline.errors import BadParamsError
-from pipeline.hands import get_hand
+from pipeline.geometry.candidates import generate_for_hands
+from pipeline.geometry.concavity import Concavities, encompass
+from pipeline.geometry.sampling import sample_object
+from pipeline.geometry.symmetry import classify
+from pipeline.hands.spec import get_hand
 from pipeline.params import ConcavityParams, SampleParams
-from pipeline.sampling import sample_object
-from pipeline.symmetry import classify
-from pipeline.trials import simulate
+from pipeline.trial.protocol import simulate
 
 ARMAR3, BARRETT = get_hand("armar3"), get_hand("barrett")
 BODY, WALL, HEIGHT, BASE = 0.04, 0.006, 0.12, 0.008
@@ -89,9 +89,9 @@ def test_mug_encompassing_candidates_surround_the_body_and_mostly_close():
 
 
 def classify_plain(surface):
-    from pipeline.mat import reconstruct
-    from pipeline.medial_axis import medial_axis
-    from pipeline.sphere_grid import build
+    from pipeline.geometry.mat import reconstruct
+    from pipeline.geometry.medial_axis import medial_axis
+    from pipeline.geometry.sphere_grid import build
 
     return classify(build(reconstruct(surface, medial_axis(surface))))
 
@@ -158,9 +158,8 @@ def test_bad_concavity_params_are_one_line(key, value, problem):
 
 
 def test_recording_shows_the_concavities_and_their_spheres(tmp_path):
+    from pipeline.outputs.recording import log_concavities, rerun_recording
     from test_recording import instances
-
-    from pipeline.recording import log_concavities, rerun_recording
 
     _, found = planned("primitive:mug", radius=BODY)
     path = tmp_path / "concavity.rrd"

@@ -1,9 +1,9 @@
-"""Contact regions (pipeline.contacts): GraspIt's hull corners, known on flat and line patches,
+"""Contact regions (pipeline.trial.contacts): GraspIt's hull corners, known on flat and line patches,
 and a choice that depends on the touching points, not on their order or repeats."""
 
 import numpy as np
 
-from pipeline.contacts import region_corners
+from pipeline.trial.contacts import region_corners
 
 UP = np.array([0.0, 0.0, 1.0])
 
@@ -117,7 +117,7 @@ def unit(vector):
 def test_a_normal_inside_its_features_cone_is_kept_and_one_outside_goes_to_the_rim():
     """clamp_to_cone, known answers: a vertex's cone of 45 deg around +z; an edge along +z whose
     faces' normals are +-1.875 deg about +x (a 96-gon's)."""
-    from pipeline.mesh_query import clamp_to_cone
+    from pipeline.geometry.mesh_query import clamp_to_cone
 
     half = np.radians(45.0)
     inside, outside = unit([np.sin(np.radians(30)), 0, np.cos(np.radians(30))]), unit([0, np.sin(1.0), np.cos(1.0)])
@@ -136,7 +136,7 @@ def test_normal_cones_of_a_96_gon_cylinder():
     are trimesh's face adjacency; a point on a side edge clamps to within 1.875 deg of radial."""
     import trimesh
 
-    from pipeline.mesh_query import ObjectMesh
+    from pipeline.geometry.mesh_query import ObjectMesh
 
     cylinder = trimesh.creation.cylinder(radius=0.05, height=0.1, sections=96)
     mesh = ObjectMesh(cylinder.vertices, cylinder.faces)

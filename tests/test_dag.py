@@ -14,21 +14,28 @@ def test_committed_dvc_files_are_written_from_the_table():
 
 
 def test_import_walk_finds_every_form(tmp_path, monkeypatch):
-    (tmp_path / "pipeline").mkdir()
-    for name in ("alpha", "beta", "gamma", "delta", "epsilon"):
-        (tmp_path / "pipeline" / f"{name}.py").write_text("")
-    (tmp_path / "pipeline" / "alpha.py").write_text("from .beta import thing\n")
+    package = tmp_path / "pipeline"
+    (package / "sub").mkdir(parents=True)
+    for name in ("__init__", "alpha", "beta", "gamma", "delta", "epsilon", "zeta"):
+        (package / f"{name}.py").write_text("")
+    (package / "sub" / "__init__.py").write_text('"""a sub-package"""\n')
+    (package / "sub" / "inner.py").write_text("from ..zeta import z\nfrom . import leaf\n")
+    (package / "sub" / "leaf.py").write_text("")
+    (package / "alpha.py").write_text("from .beta import thing\n")
     stage = tmp_path / "stages" / "demo.py"
     stage.parent.mkdir()
     stage.write_text(
         "import os\nimport pipeline.gamma\nfrom pipeline import delta, not_a_module\n"
-        "from pipeline.alpha import x\n\ndef main():\n    from pipeline.epsilon import y\n"
+        "from pipeline.alpha import x\nfrom pipeline.sub.inner import y\n\n"
+        "def main():\n    from pipeline.epsilon import y\n"
     )
     monkeypatch.setattr(dag, "ROOT", tmp_path)
     dag.code_deps.cache_clear()
     try:
-        assert dag._imported(stage) == {"gamma", "delta", "alpha", "epsilon"}
-        assert dag._imported(tmp_path / "pipeline" / "alpha.py") == {"beta"}
+        assert dag._imported(stage) == {("gamma",), ("delta",), ("alpha",), ("epsilon",), ("sub", "inner")}
+        assert dag._imported(package / "alpha.py") == {("beta",)}
+        # relative imports climb out of a sub-package; `from . import leaf` names the module
+        assert dag._imported(package / "sub" / "inner.py") == {("zeta",), ("sub",), ("sub", "leaf")}
         assert dag.code_deps("demo") == (
             "stages/demo.py",
             "pipeline/__init__.py",
@@ -37,33 +44,52 @@ def test_import_walk_finds_every_form(tmp_path, monkeypatch):
             "pipeline/delta.py",
             "pipeline/epsilon.py",
             "pipeline/gamma.py",
+            "pipeline/sub/__init__.py",  # Python runs a sub-package's __init__ before its modules
+            "pipeline/sub/inner.py",
+            "pipeline/sub/leaf.py",
+            "pipeline/zeta.py",
         )
     finally:
         dag.code_deps.cache_clear()
 
 
+#: the geometry stages: the object and its candidates, before any trial
+GEOMETRY_STAGES = ("sample", "medial_axis", "mat", "sphere_grid", "classify", "concavity", "candidates")
+
+
+def test_geometry_stages_depend_on_no_trial_physics_or_export_code():
+    # an engine, check or export change must not rerun the object's geometry
+    engine_side = ("pipeline/trial/", "pipeline/checks/", "pipeline/bullet.py", "pipeline/outputs/")
+    drawing = {"pipeline/outputs/__init__.py", "pipeline/outputs/recording.py", "pipeline/outputs/colours.py"}
+    for name in GEOMETRY_STAGES:
+        deps = set(dag.code_deps(name))
+        assert {path for path in deps if path.startswith(engine_side)} <= drawing, name
+        assert f"pipeline/geometry/{dag.function(dag.stage(name)).__module__.split('.')[-1]}.py" in deps
+    assert {entry.name for entry in dag.STAGES if not entry.per_hand} - set(GEOMETRY_STAGES) == {"decompose"}
+    # the recordings of the geometry stages draw no trial
+    assert "pipeline/outputs/trial_recording.py" in dag.code_deps("simulate")
+
+
 def test_code_deps_follow_the_imports_and_stay_tight():
     simulate = set(dag.code_deps("simulate"))
-    # the trial engine's modules reach simulate only through pipeline.trials -> simulation
+    # the trial engine's modules reach simulate through pipeline.trial.protocol -> engine
     assert {
-        "pipeline/trials.py",
-        "pipeline/simulation.py",
-        "pipeline/proximity.py",
-        "pipeline/mesh_query.py",
-        "pipeline/contacts.py",
-        "pipeline/quality.py",
-        "pipeline/kinematics.py",
-        "pipeline/urdf.py",
+        "pipeline/trial/__init__.py",
+        "pipeline/trial/protocol.py",
+        "pipeline/trial/engine.py",
+        "pipeline/trial/proximity.py",
+        "pipeline/geometry/mesh_query.py",
+        "pipeline/trial/contacts.py",
+        "pipeline/trial/quality.py",
+        "pipeline/hands/kinematics.py",
+        "pipeline/hands/urdf.py",
         "pipeline/params.py",
         "pipeline/stage_io.py",
         "pipeline/artefacts.py",
     } <= simulate
-    # the geometry stages do not rerun when the trial engine changes
-    for name in ("sample", "medial_axis", "mat", "sphere_grid", "candidates"):
-        assert not {"pipeline/simulation.py", "pipeline/quality.py", "pipeline/recording.py"} & set(dag.code_deps(name))
-    assert "pipeline/medial_axis.py" in dag.code_deps("medial_axis")
-    assert {"pipeline/mat.py", "pipeline/cell_grid.py"} <= set(dag.code_deps("mat"))
-    assert "pipeline/figures.py" in dag.code_deps("report") and "pipeline/figures.py" not in simulate
+    assert not {path for path in simulate if path.startswith("pipeline/checks/")}
+    assert {"pipeline/geometry/mat.py", "pipeline/geometry/cell_grid.py"} <= set(dag.code_deps("mat"))
+    assert "pipeline/outputs/figures.py" in dag.code_deps("report") and "pipeline/outputs/figures.py" not in simulate
     with pytest.raises(PipelineError, match="no stage named 'sampel'"):
         dag.stage("sampel")
 
@@ -125,8 +151,8 @@ def test_matrix_entries_take_their_code_deps_through_one_fingerprint(tmp_path):
     dag.main(["--fingerprint", "simulate", str(out)])
     written = json.loads(out.read_text())
     assert written["stage"] == "simulate" and list(written["files"]) == sorted(dag.code_deps("simulate"))
-    quality = (dag.ROOT / "pipeline" / "quality.py").read_bytes()
-    assert written["files"]["pipeline/quality.py"] == hashlib.md5(quality).hexdigest()
+    quality = (dag.ROOT / "pipeline" / "trial" / "quality.py").read_bytes()
+    assert written["files"]["pipeline/trial/quality.py"] == hashlib.md5(quality).hexdigest()
 
 
 def test_each_object_has_its_own_stage_files_written_from_params(tmp_path):

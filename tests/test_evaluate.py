@@ -1,4 +1,4 @@
-"""`medial-grasp evaluate` (pipeline.grasp_sets, pipeline.evaluate): ACRONYM-layout files written
+"""`medial-grasp evaluate` (pipeline.outputs.grasp_sets, pipeline.outputs.evaluate): ACRONYM-layout files written
 here by hand in ACRONYM's Panda frame, the frame rule tested by its failure, the agreement table's
 known answers, and one-line errors for bad files with nothing written."""
 
@@ -11,11 +11,11 @@ import pytest
 import trimesh
 
 from pipeline.__main__ import main
-from pipeline.evaluate import confusion, roc_auc
-from pipeline.export import replay_file
-from pipeline.grasp_sets import GRIPPER_FRAMES, read_grasp_set
-from pipeline.hands import get_hand
-from pipeline.kinematics import hand_model, link_poses
+from pipeline.hands.kinematics import hand_model, link_poses
+from pipeline.hands.spec import get_hand
+from pipeline.outputs.evaluate import confusion, roc_auc
+from pipeline.outputs.export import replay_file
+from pipeline.outputs.grasp_sets import GRIPPER_FRAMES, read_grasp_set
 from pipeline.params import CheckParams, Params, SampleParams, SimulateParams
 from pipeline.plan import run_chain, summary, write_plan
 
@@ -154,7 +154,7 @@ def test_franka_is_exported_as_acronyms_panda_with_the_fingers_along_x(exported)
     np.testing.assert_allclose(origins[..., 0], joints * [-1.0, 1.0], atol=1e-12)
     np.testing.assert_allclose(origins[..., 2], 0.0584, atol=1e-12)
     # the project's own reader turns them back into the franka's base frame, bit for bit
-    found, results = replay_file(exported["franka"], **SimulateParams().world_settings())
+    found, results = replay_file(exported["franka"], settings=SimulateParams())
     assert found["hand"] == "franka"
     np.testing.assert_array_equal(found["transforms"], base)
     assert [result.outcome for result in results] == list(found["outcome"])

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-from pipeline.expanding_hull import nearest_facet
-from pipeline.quality import contact_wrenches
+from pipeline.trial.expanding_hull import nearest_facet
+from pipeline.trial.quality import contact_wrenches
 
 
 def whole_hull_distance(points):

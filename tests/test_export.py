@@ -18,13 +18,13 @@ from scipy.spatial.transform import Rotation
 
 from pipeline.__main__ import main
 from pipeline.artefacts import SurfaceSamples, write_table
-from pipeline.export import closed_poses, find_runs, rank_order, read_grasps, replay_file
-from pipeline.grasp_checks import with_checks
-from pipeline.hands import export_hand, get_hand, load_hand
-from pipeline.kinematics import hand_model
+from pipeline.checks.protocol import with_checks
+from pipeline.hands.kinematics import hand_model
+from pipeline.hands.spec import export_hand, get_hand, load_hand
+from pipeline.outputs.export import EXPORTED, closed_poses, find_runs, rank_order, read_grasps, replay_file
 from pipeline.params import CheckParams, Params, SampleParams, SimulateParams
 from pipeline.plan import run_chain, summary, write_plan
-from pipeline.simulation import GraspEngine
+from pipeline.trial.engine import GraspEngine
 
 REPO = Path(__file__).resolve().parents[1]
 HANDS = ("armar3", "barrett")
@@ -34,8 +34,7 @@ PARAMS = Params(
     simulate=SimulateParams(spheres_per_object=2, baseline_trials=8, workers=1),
     checks=CheckParams(trials=3, robust_samples=4),
 )
-SETTINGS = PARAMS.simulate.world_settings()
-CLOSED = ("force_closure", "no_force_closure", "no_contact")
+SETTINGS = PARAMS.simulate
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +97,7 @@ def expected_ranking(rows):
             -row.epsilon,
         )
 
-    closed = rows[rows.outcome.astype(str).isin(CLOSED)]
+    closed = rows[rows.outcome.astype(str).isin(EXPORTED)]
     return [row.trial for row in sorted(closed.itertuples(), key=lambda row: (key(row), row.trial))]
 
 
@@ -162,7 +161,7 @@ def assert_replays(found):
     """Every grasp replayed through GraspEngine.replay from the file's own mesh, pose and joints
     gives the recorded outcome, and epsilon within 1e-9 relative."""
     engine = GraspEngine(
-        SimpleNamespace(vertices=found["vertices"], faces=found["faces"]), get_hand(found["hand"]), **SETTINGS
+        SimpleNamespace(vertices=found["vertices"], faces=found["faces"]), get_hand(found["hand"]), SETTINGS
     )
     results = engine.replay(found["transforms"], found["joints"])
     assert [result.outcome for result in results] == list(found["outcome"])
@@ -191,7 +190,7 @@ def test_replay_grades_a_closed_hand_as_its_trial_did(plan_dir):
     hand = get_hand("barrett")
     trials = pd.read_parquet(plan_dir / "trials.parquet")
     rows = trials[trials.hand == "barrett"].reset_index(drop=True)
-    engine = GraspEngine(surface, hand, **SETTINGS)
+    engine = GraspEngine(surface, hand, SETTINGS)
     candidate = [rows[[f"{name}_{axis}" for axis in "xyz"]].to_numpy() for name in ("grasp", "approach", "orient")]
     ran = engine.run(*candidate, list(rows.preshape))
     joints = np.stack(rows.joints.to_numpy())
@@ -222,7 +221,7 @@ def test_plan_export_datasets_ranking_pregrasp_and_replay(plan_dir, tmp_path, fm
     for path, hand in zip(files, HANDS):
         found = read_h5(path) if fmt == "acronym" else read_json(path)
         rows = source_rows(plan_dir, hand)
-        count = int(rows.outcome.astype(str).isin(CLOSED).sum())
+        count = int(rows.outcome.astype(str).isin(EXPORTED).sum())
         model = hand_model(get_hand(hand))
         # shapes and names: joints in the hand model's order, which is the hand's limits order
         assert found["transforms"].shape == found["pregrasp"].shape == (count, 4, 4)
@@ -300,7 +299,7 @@ def test_read_grasps_and_replay_file_agree_on_both_formats(plan_dir, tmp_path):
     # the open preshape's joints at the pre-grasp
     hand = get_hand(from_h5["hand"])
     np.testing.assert_array_equal(from_h5["pregrasp_joints"][0], [hand.preshape()[j] for j in from_h5["joint_names"]])
-    found, results = replay_file(json_file, **SETTINGS)
+    found, results = replay_file(json_file, settings=SETTINGS)
     assert [result.outcome for result in results] == list(found["outcome"])
     assert all(result.finger_stops == ("contact",) * len(hand.fingers) for result in results)
     assert json_file.read_bytes() == export(plan_dir, "json", tmp_path / "again")[0].read_bytes()  # deterministic
@@ -321,7 +320,7 @@ def test_dvc_data_tree_counts_skipped_trials(data_dir, tmp_path, capsys):
 
 
 def test_report_layout_finds_meshes_in_the_data_tree(plan_dir, data_dir, tmp_path):
-    from pipeline.report import combine
+    from pipeline.outputs.report import combine
 
     tables, checks = {}, {}
     for name in ("box", "block"):  # two objects, the second with a planner the first has not
@@ -405,7 +404,7 @@ def test_bad_inputs_give_one_line(data_dir, tmp_path, capsys):
     spec = export_hand(get_hand("barrett"), tmp_path / "spec")
     spec.write_text(spec.read_text().replace("name: barrett", "name: robotiq"))
     (file,) = export(tmp_path / "strange", "json", tmp_path / "out", "--hand", str(spec))[1:]
-    found, results = replay_file(file, hand=load_hand(spec), **SETTINGS)
+    found, results = replay_file(file, hand=load_hand(spec), settings=SETTINGS)
     assert file.name == "box-1.0-robotiq.json" and found["hand"] == "robotiq" and len(results) > 0
     assert [result.outcome for result in results] == list(found["outcome"])
     # and through the real command line: one line on stderr, no traceback

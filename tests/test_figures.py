@@ -10,7 +10,9 @@ import pytest
 from conftest import chain
 from pipeline.arrays import vectors
 from pipeline.errors import BadInputError
-from pipeline.figures import (
+from pipeline.geometry.sampling import sample_object
+from pipeline.hands.spec import HANDS
+from pipeline.outputs.figures import (
     CLASS_COLOURS,
     best_grasps,
     candidate_lines,
@@ -19,11 +21,9 @@ from pipeline.figures import (
     image_grid,
     sphere_figure,
 )
-from pipeline.hands import HANDS
+from pipeline.outputs.render import render_hand
 from pipeline.params import SampleParams
-from pipeline.render import render_hand
-from pipeline.sampling import sample_object
-from pipeline.trials import simulate
+from pipeline.trial.protocol import simulate
 
 BARRETT = HANDS["barrett"]
 

@@ -1,4 +1,4 @@
-"""The checks of a run's trials (pipeline.grasp_checks, stage ``check``): which trials are
+"""The checks of a run's trials (pipeline.checks.protocol, stage ``check``): which trials are
 checked, what an unclosed trial gets, and that the results depend on the seed alone."""
 
 import dataclasses
@@ -7,12 +7,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from pipeline.checks.physics import decompose
+from pipeline.checks.protocol import check_trials, empty_checks, summary, with_checks
 from pipeline.errors import ArtefactError
-from pipeline.grasp_checks import check_trials, empty_checks, summary, with_checks
-from pipeline.hands import HANDS
+from pipeline.hands.spec import HANDS
 from pipeline.params import CheckParams, SimulateParams
-from pipeline.physics import decompose
-from pipeline.trials import baseline_candidates, simulate
+from pipeline.trial.protocol import baseline_candidates, simulate
 from test_simulation import cube
 
 JAW = HANDS["parallel_jaw"]
@@ -23,14 +23,14 @@ def run():
     """The jaw on a 4 cm cube: 12 'MAT' candidates (surface-normal ones, one per sphere) and 12
     baseline trials, some closing on the cube, some not; the cube's convex parts."""
     surface = cube()
-    candidates = baseline_candidates(surface, JAW, 12, seed=3).assign(sphere_index=np.arange(12))
+    candidates = baseline_candidates(surface, JAW, 12, np.random.default_rng(3)).assign(sphere_index=np.arange(12))
     trials, _ = simulate(surface, candidates, [JAW], spheres_per_object=12, baseline_trials=12, seed=0)
     return surface, trials, decompose(surface)
 
 
 def checked(run, workers=1, **checks):
     surface, trials, parts = run
-    settings = SimulateParams().world_settings()
+    settings = SimulateParams()
     keywords = {**dataclasses.asdict(CheckParams()), "trials": 5, "robust_samples": 3, **checks}
     return check_trials(surface, trials, parts, hands=[JAW], seed=7, settings=settings, workers=workers, **keywords)
 
@@ -127,7 +127,7 @@ def test_a_checks_table_of_other_trials_is_refused(run):
 def test_the_report_counts_robust_only_checks(run):
     """With the physics check off, the report still counts the checked trials and shows their
     robust force closure (no physics success)."""
-    from pipeline import report
+    from pipeline.outputs import report
 
     _, trials, _ = run
     key = ("cube", 1.0, "parallel_jaw")
@@ -141,7 +141,7 @@ def test_the_report_shows_each_engine_and_their_agreement(run):
     """From the checks of both engines, hand-counted: the run's held % per check and the engines'
     agreement % in the results, Table I's cells (force closure (pybullet / MuJoCo / robust)),
     the engines table, and a calibration table and plot columns per check."""
-    from pipeline import report
+    from pipeline.outputs import report
 
     _, trials, _ = run
     key = ("cube", 1.0, "parallel_jaw")

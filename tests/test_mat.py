@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from conftest import chain
-from pipeline.mat import nearest_samples, object_angle, reconstruct
+from pipeline.geometry.mat import nearest_samples, object_angle, reconstruct
 
 DEG = np.pi / 180
 
@@ -116,7 +116,7 @@ def test_contacts_touch_within_tau():
 def test_balls_centred_outside_the_object_are_dropped():
     # a ball the approximate growing pass left at its start radius lies beside the object (seen on
     # the thin-walled vase); a medial ball's centre is behind the outward normal of its nearest sample
-    from pipeline.medial_axis import inner_balls
+    from pipeline.geometry.medial_axis import inner_balls
 
     directions = np.random.default_rng(0).normal(size=(2000, 3))
     normals = directions / np.linalg.norm(directions, axis=1, keepdims=True)

@@ -1,4 +1,4 @@
-"""The MuJoCo lift-and-shake (pipeline.mujoco_check) beside pybullet's (pipeline.physics): the same
+"""The MuJoCo lift-and-shake (pipeline.checks.mujoco_check) beside pybullet's (pipeline.checks.physics): the same
 known outcomes on analytic shapes from both engines, MuJoCo's open start, the URDF's mimic joint
 as an equality constraint, determinism."""
 
@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 
 from pipeline.bullet import pybullet
-from pipeline.evaluate import InPlaceEngine
-from pipeline.hands import HANDS, Finger
-from pipeline.kinematics import base_poses
-from pipeline.mujoco_check import MujocoCheck, MujocoSettings, build_spec, mass_properties
+from pipeline.checks.mujoco_check import MujocoCheck, MujocoSettings, build_spec
+from pipeline.geometry.mass import inertia
+from pipeline.checks.physics import PhysicsCheck, PhysicsSettings
+from pipeline.hands.kinematics import base_poses
+from pipeline.hands.spec import HANDS, Finger
+from pipeline.outputs.evaluate import InPlaceEngine
 from pipeline.params import CheckParams, SimulateParams
-from pipeline.physics import PhysicsCheck, PhysicsSettings
 from test_simulation import cube, surface
 
 ENGINES = ("pybullet", "mujoco")
@@ -206,17 +207,17 @@ def test_the_model_holds_the_parts_the_mass_and_the_coupling():
     hand = franka_coupled()
     model = InPlaceEngine(shape, hand).model
     mass = 0.2
-    centre, inertia = mass_properties(shape.vertices, shape.faces, mass)
+    centre, moments = inertia(shape.vertices, shape.faces, mass)
     np.testing.assert_allclose(centre, 0.0, atol=1e-12)
-    np.testing.assert_allclose(inertia, [mass * 0.04**2 / 6] * 3 + [0.0] * 3, atol=1e-12)
+    np.testing.assert_allclose(moments, [mass * 0.04**2 / 6] * 3 + [0.0] * 3, atol=1e-12)
     halves = [shape.vertices[shape.vertices[:, 0] <= 0], shape.vertices[shape.vertices[:, 0] >= 0]]
     settings = MujocoSettings.defaults()
     assert settings == MujocoSettings.from_params(CheckParams(), SimulateParams().mu)  # the params' defaults
-    spec = build_spec(hand, model, halves, mass_kg=mass, centre=centre, inertia=inertia, settings=settings)
+    spec = build_spec(hand, model, halves, mass_kg=mass, centre=centre, inertia=moments, settings=settings)
     compiled = spec.compile()
     body = compiled.body("object")
     assert float(body.mass[0]) == mass and compiled.nmocap == 1 and compiled.nu == 1
-    np.testing.assert_allclose(compiled.body_inertia[body.id], inertia[:3], rtol=1e-9)
+    np.testing.assert_allclose(compiled.body_inertia[body.id], moments[:3], rtol=1e-9)
     assert (compiled.geom_bodyid == body.id).sum() == 2
     parts = np.flatnonzero(compiled.geom_bodyid == body.id)
     # each face a slab about x = -+2 cm (MuJoCo puts a mesh geom at its centroid), 1 mm thick

@@ -14,15 +14,15 @@ import numpy as np
 import pytest
 import trimesh
 import yaml
-from conftest import complete_params
 from dvc.stage.utils import is_valid_name
 
+from conftest import complete_params
 from pipeline.__main__ import main
-from pipeline.catalogue import figure_objects_following
 from pipeline.batch import find_meshes
 from pipeline.errors import BadInputError, BadParamsError
-from pipeline.hands import HANDS
-from pipeline.objects import check_size, object_name, select_meshes
+from pipeline.geometry.catalogue import figure_objects_following
+from pipeline.geometry.objects import check_size, object_name, select_meshes
+from pipeline.hands.spec import HANDS
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -1,7 +1,7 @@
 """The paper's statements on its figures, checked on the procedural analogues of its objects.
 
 Candidates only (no simulation), default params, seed 0, both hands. Every region below is
-written from the dimensions in the builder (pipeline/procedural.py), in the object frame at
+written from the dimensions in the builder (pipeline/geometry/procedural.py), in the object frame at
 scale 1; a candidate is where its sphere's centre is (the paper's P_g; a rim candidate's P_g
 moves across a thin wall's rim to centre the hand on the material between its fingers, which
 does not change the part it grasps).
@@ -12,7 +12,7 @@ import functools
 import numpy as np
 import pytest
 
-from pipeline.hands import get_hand
+from pipeline.hands.spec import get_hand
 from pipeline.params import Params
 from pipeline.plan import run_chain
 

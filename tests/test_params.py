@@ -54,10 +54,12 @@ def test_an_unknown_key_is_named(tmp_path):
 def test_library_defaults_agree_with_the_params():
     import inspect
 
-    from pipeline import sphere_grid
-    from pipeline.candidates import generate, generate_for_hands
-    from pipeline.mat import reconstruct
-    from pipeline.medial_axis import medial_axis
+    from pipeline.geometry import sphere_grid
+    from pipeline.geometry.candidates import generate, generate_for_hands
+    from pipeline.geometry.mat import reconstruct
+    from pipeline.geometry.medial_axis import medial_axis
+    from pipeline.geometry.sampling import sample_object
+    from pipeline.geometry.symmetry import classify
     from pipeline.params import (
         CandidatesParams,
         ClassifyParams,
@@ -66,8 +68,6 @@ def test_library_defaults_agree_with_the_params():
         SampleParams,
         SphereGridParams,
     )
-    from pipeline.sampling import sample_object
-    from pipeline.symmetry import classify
 
     checked = 0
     for function, section in (

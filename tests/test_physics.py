@@ -1,4 +1,4 @@
-"""The physics check of a closed grasp (pipeline.physics, stage ``check``): known outcomes on
+"""The physics check of a closed grasp (pipeline.checks.physics, stage ``check``): known outcomes on
 analytic shapes."""
 
 import dataclasses
@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull
 
-from pipeline.hands import HANDS
-from pipeline.physics import PhysicsCheck, PhysicsSettings, convex_parts, mesh_volume
-from pipeline.simulation import GraspEngine
+from pipeline.checks.physics import PhysicsCheck, PhysicsSettings, convex_parts
+from pipeline.geometry.mass import mesh_volume
+from pipeline.hands.spec import HANDS
+from pipeline.trial.engine import GraspEngine
 from test_simulation import cube, surface
 
 

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from pipeline.geometry.procedural import BUILDERS
+from pipeline.geometry.sampling import sample_object
 from pipeline.params import SampleParams
-from pipeline.procedural import BUILDERS
-from pipeline.sampling import sample_object
 
 # builder: bounding-box extents (m) from its docstring, and the thinnest graspable part it promises
 EXTENTS = {

@@ -12,7 +12,7 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from pipeline.errors import BadInputError
-from pipeline.quality import Quality, contact_wrenches, epsilon_quality, friction_cone
+from pipeline.trial.quality import Quality, contact_wrenches, epsilon_quality, friction_cone
 
 A = 0.02  # half-width of the box between two antipodal fingers, metres
 OCTAGON = np.cos(np.pi / 8)  # inradius / circumradius of the 8-edge cone's cross-section
@@ -253,7 +253,7 @@ def grown_by(request, monkeypatch):
     """Each grown-hull test runs twice: by the expanding polytope, then as if it had met a
     degenerate facet, by Qhull's grown hulls (its fallback)."""
     if request.param == "qhull":
-        import pipeline.quality as quality
+        import pipeline.trial.quality as quality
 
         monkeypatch.setattr(quality, "nearest_facet", lambda wrenches: None)
     return request.param
@@ -285,7 +285,7 @@ def test_grown_hull_gives_the_whole_hulls_epsilon(spread, rng, grown_by):
 def test_supports_skip_only_facets_that_cannot_matter(rng):
     """The nearest-first projection gives the smallest support of every facet, and every facet
     below it, of a hull with thousands of facets, while projecting only a few of them."""
-    from pipeline.quality import _supports
+    from pipeline.trial.quality import _supports
 
     outward = rng.normal(size=(150, 3))
     outward /= np.linalg.norm(outward, axis=1, keepdims=True)
@@ -315,7 +315,7 @@ def test_joggled_small_hulls_still_end(monkeypatch, rng):
     """Under Qhull's joggle (QJ, the last option) a small hull's facets can miss its own points
     by ~1e-9, so growing it may add nothing: epsilon then comes from the whole hull instead of
     looping (it did, on 16 of 60 of these grasps)."""
-    import pipeline.quality as quality
+    import pipeline.trial.quality as quality
 
     monkeypatch.setattr(quality, "QHULL_OPTIONS", ("QJ",))
     monkeypatch.setattr(quality, "nearest_facet", lambda wrenches: None)  # Qhull's path

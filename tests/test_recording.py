@@ -7,17 +7,17 @@ import pyarrow as pa
 import pytest
 import yaml
 from mcap.reader import make_reader
-from conftest import complete_params
 from rerun.chunk import RrdReader
 
+from conftest import complete_params
 from pipeline.dag import STAGES
-from pipeline.hands import get_hand
-from pipeline.kinematics import hand_model
+from pipeline.hands.kinematics import hand_boxes, hand_model
+from pipeline.hands.spec import get_hand
 from pipeline.logbook import file_digest, mcap_log, read_log
+from pipeline.outputs.recording import rerun_recording
+from pipeline.outputs.trial_recording import record_chain
 from pipeline.params import CheckParams, Params, SampleParams, SimulateParams
 from pipeline.plan import run_chain, summary
-from pipeline.recording import record_chain, rerun_recording
-from pipeline.kinematics import hand_boxes
 
 HANDS = ["armar3", "barrett"]
 
@@ -39,7 +39,7 @@ def recorded(tmp_path_factory):
         result,
         name="capsule",
         hands=[get_hand(hand) for hand in HANDS],
-        settings=params.simulate.world_settings(),
+        settings=params.simulate,
     )
     artefacts["sample"].save(folder / "surface.npz")
     artefacts["sphere_grid"].save(folder / "sphere_grid.npz")

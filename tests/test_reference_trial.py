@@ -1,12 +1,12 @@
-"""The slow reference of the trial engine (:mod:`pipeline.reference_trial`): its exact geometry
+"""The slow reference of the trial engine (:mod:`pipeline.trial.reference`): its exact geometry
 against known answers, so that its agreement with the engine measures the engine."""
 
 import numpy as np
 import pytest
 
-from pipeline.hands import HANDS
-from pipeline.kinematics import base_poses
-from pipeline.reference_trial import ReferenceEngine, _hull_gap, closest_on_triangles
+from pipeline.hands.kinematics import base_poses
+from pipeline.hands.spec import HANDS
+from pipeline.trial.reference import ReferenceEngine, _hull_gap, closest_on_triangles
 from test_simulation import cube, surface
 from test_trial_engine import random_candidates
 
@@ -125,11 +125,11 @@ def test_reference_jaw_squeezing_a_cube_gets_the_pads_face_contacts():
 def test_reference_point_velocities_match_the_engines_kinematics(name):
     """Random closing states of every hand: the velocity of points on each moving link, from
     pybullet's joint frames and axes (the reference) and from the engine's own kinematics
-    (:meth:`pipeline.simulation.GraspEngine._velocity`), agree to 1e-5 of the speed
+    (:meth:`pipeline.trial.engine.GraspEngine._velocity`), agree to 1e-5 of the speed
     (pybullet's frames are float32: the numerical derivative the reference used before was off
     by 2e-4, which pressed a jaw pad sliding past a vertex beside its side face)."""
-    from pipeline.kinematics import link_poses
-    from pipeline.simulation import GraspEngine
+    from pipeline.hands.kinematics import link_poses
+    from pipeline.trial.engine import GraspEngine
 
     box = surface("primitive:box", extents=(0.05, 0.03, 0.04))
     hand, rng = HANDS[name], np.random.default_rng(5)

@@ -6,9 +6,9 @@ import pytest
 import trimesh
 import yaml
 
-from pipeline import report
-from pipeline.catalogue import folder_entries, replace_objects
 from pipeline.errors import BadInputError
+from pipeline.geometry.catalogue import folder_entries, replace_objects
+from pipeline.outputs import report
 
 
 def trials_of(outcomes, epsilons, planner, hand="armar3"):

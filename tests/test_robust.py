@@ -1,12 +1,12 @@
-"""Robust force closure (pipeline.robust, issue 15): Dex-Net's probability of force closure
+"""Robust force closure (pipeline.checks.robust, issue 15): Dex-Net's probability of force closure
 under pose and friction noise, through the same trial engine."""
 
 import numpy as np
 import pytest
 
-from pipeline.hands import HANDS
-from pipeline.robust import perturbed_candidates, robust_force_closure
-from pipeline.simulation import GraspEngine
+from pipeline.checks.robust import perturbed_candidates, robust_force_closure
+from pipeline.hands.spec import HANDS
+from pipeline.trial.engine import GraspEngine
 from test_simulation import cube
 
 # the jaw squeezing a 4 cm cube across two faces, along a face normal (test_simulation's)
@@ -108,7 +108,7 @@ def test_jaw_on_a_cube_is_robust_without_noise_and_less_so_as_the_turn_grows():
 def test_friction_noise_alone_grades_the_nominal_closed_hand_at_each_copys_mu():
     """With only mu noise every copy closes exactly as the nominal trial, so its fraction and
     mean epsilon are those of the nominal contacts graded at each copy's own mu."""
-    from pipeline.quality import epsilon_quality
+    from pipeline.trial.quality import epsilon_quality
 
     engine = GraspEngine(cube(), HANDS["parallel_jaw"])
     fraction, epsilon = jaw_robust(engine, 32, 0.0, 0.0, 0.3)

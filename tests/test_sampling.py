@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from pipeline.sampling import corner_normals, estimate_cloud_normals, sample_mesh
+from pipeline.geometry.sampling import corner_normals, estimate_cloud_normals, sample_mesh
 
 
 def test_box_samples_lie_on_faces_with_exact_face_normals(rng):

@@ -9,12 +9,12 @@ import pandas as pd
 import pytest
 
 from pipeline.errors import BadParamsError
-from pipeline.hands import HANDS, export_hand, get_hand, load_hand
+from pipeline.geometry.sampling import sample_object
+from pipeline.hands.kinematics import base_poses
+from pipeline.hands.spec import HANDS, export_hand, get_hand, load_hand
 from pipeline.params import SampleParams
-from pipeline.sampling import sample_object
-from pipeline.kinematics import base_poses
-from pipeline.simulation import OUTCOMES, GraspEngine
-from pipeline.trials import baseline_candidates, run_trials, select_candidates, simulate, summarise
+from pipeline.trial.engine import OUTCOMES, GraspEngine
+from pipeline.trial.protocol import baseline_candidates, run_trials, select_candidates, simulate, trial_rates
 
 
 @functools.lru_cache(maxsize=None)
@@ -191,7 +191,7 @@ def test_bad_hand_specs_are_one_line_errors(tmp_path, edit, problem):
 
 def test_baseline_approaches_along_the_inward_normal_with_a_random_roll():
     samples = cylinder()
-    table = baseline_candidates(samples, HANDS["barrett"], 200, seed=4)
+    table = baseline_candidates(samples, HANDS["barrett"], 200, np.random.default_rng(4))
     approach = table[["approach_x", "approach_y", "approach_z"]].to_numpy()
     orient = table[["orient_x", "orient_y", "orient_z"]].to_numpy()
     grasp = table[["grasp_x", "grasp_y", "grasp_z"]].to_numpy()
@@ -199,7 +199,7 @@ def test_baseline_approaches_along_the_inward_normal_with_a_random_roll():
     np.testing.assert_allclose(approach, -samples.normals[index], atol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(orient, axis=1), 1.0, atol=1e-12)
     np.testing.assert_allclose((approach * orient).sum(axis=1), 0.0, atol=1e-12)
-    assert table.equals(baseline_candidates(samples, HANDS["barrett"], 200, seed=4))
+    assert table.equals(baseline_candidates(samples, HANDS["barrett"], 200, np.random.default_rng(4)))
     # rolls are spread: the orientation's angle about the approach is not one value
     assert np.ptp(np.arctan2(orient[:, 2], orient[:, 0])) > 3.0
 
@@ -229,7 +229,7 @@ def test_simulate_tables_summary_and_worker_independence():
                 }
             )
     candidates = pd.DataFrame(rows)
-    assert select_candidates(candidates, "barrett", 3, seed=1).sphere_index.nunique() == 3
+    assert select_candidates(candidates, "barrett", 3, np.random.default_rng(1)).sphere_index.nunique() == 3
     trials, contacts = simulate(
         samples, candidates, [HANDS["barrett"]], spheres_per_object=3, baseline_trials=-1, seed=1, workers=1
     )
@@ -239,7 +239,7 @@ def test_simulate_tables_summary_and_worker_independence():
     assert (
         contacts.groupby("trial").size().reindex(range(len(trials)), fill_value=0).tolist() == trials.contacts.tolist()
     )
-    result = summarise(trials[trials.planner == "mat"])
+    result = trial_rates(trials[trials.planner == "mat"])
     assert result["force_closure_rate"] == 1.0 and result["outcomes"]["force_closure"] == 12
     assert result["mean_epsilon"] == pytest.approx(trials.epsilon[trials.planner == "mat"].mean())
     again, again_contacts = simulate(
@@ -250,9 +250,9 @@ def test_simulate_tables_summary_and_worker_independence():
 
 
 def test_run_trials_keeps_table_order_across_workers():
-    table = baseline_candidates(cube(), HANDS["parallel_jaw"], 70, seed=2)
-    serial = run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], {}, workers=1)
-    parallel = run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], {}, workers=2)
+    table = baseline_candidates(cube(), HANDS["parallel_jaw"], 70, np.random.default_rng(2))
+    serial = run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=1)
+    parallel = run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=2)
     assert [r.outcome for r in serial[0]] == [r.outcome for r in parallel[0]]
     assert [r.epsilon for r in serial[0]] == [r.epsilon for r in parallel[0]]
 
@@ -260,7 +260,7 @@ def test_run_trials_keeps_table_order_across_workers():
 def _imported_before_any_work():
     import sys
 
-    return [name in sys.modules for name in ("pipeline.simulation", "open3d", "trimesh")]
+    return [name in sys.modules for name in ("pipeline.trial.engine", "open3d", "trimesh")]
 
 
 def test_trial_workers_start_with_the_engine_already_imported():
@@ -276,7 +276,7 @@ def test_trial_workers_start_with_the_engine_already_imported():
 def test_hand_pictures_show_the_hand_open_and_closed_on_the_object(tmp_path):
     from PIL import Image
 
-    from pipeline.render import closed_joints, render_open_closed
+    from pipeline.outputs.render import closed_joints, render_open_closed
 
     closed = closed_joints(HANDS["barrett"])
     assert closed["f1_prox"] == 2.44 and closed["f1_dist"] == pytest.approx(0.344 * 2.44)
@@ -316,11 +316,11 @@ def test_a_toml_hand_spec_reads_like_the_yaml_one(tmp_path):
 
 def test_an_object_without_candidates_gives_empty_tables(tmp_path):
     from pipeline.artefacts import read_table, write_table
-    from pipeline.candidates import COLUMNS
+    from pipeline.geometry.candidates import COLUMNS
 
     empty = pd.DataFrame({column: [] for column in COLUMNS})
     trials, contacts = simulate(cube(), empty, [HANDS["barrett"]], spheres_per_object=5, baseline_trials=-1)
     assert len(trials) == 0 and len(contacts) == 0 and {"outcome", "epsilon", "planner"} <= set(trials.columns)
-    assert summarise(trials)["trials"] == 0 and np.isnan(summarise(trials)["force_closure_rate"])
+    assert trial_rates(trials)["trials"] == 0 and np.isnan(trial_rates(trials)["force_closure_rate"])
     write_table(tmp_path / "trials.parquet", trials)
     assert len(read_table(tmp_path / "trials.parquet")) == 0

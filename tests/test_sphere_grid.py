@@ -3,8 +3,8 @@
 import numpy as np
 
 from conftest import chain
-from pipeline import sphere_grid
 from pipeline.artefacts import SphereGrid
+from pipeline.geometry import sphere_grid
 
 
 def test_neighbours_equal_brute_force_on_a_real_grid(tmp_path):

@@ -7,11 +7,11 @@ import pytest
 
 from conftest import chain
 from pipeline.arrays import vectors
-from pipeline.candidates import IDS_PER_SPHERE, generate, generate_for_hands
-from pipeline.hands import HANDS, Hand, get_hand
+from pipeline.geometry.candidates import IDS_PER_SPHERE, generate, generate_for_hands
+from pipeline.geometry.symmetry import AXIS, INTERIOR, ISOLATED, RIM, cell_moments, classify, neighbourhood_pca
+from pipeline.hands.spec import HANDS, Hand, get_hand
 from pipeline.params import Params, SampleParams
 from pipeline.plan import run_chain
-from pipeline.symmetry import AXIS, INTERIOR, ISOLATED, RIM, cell_moments, classify, neighbourhood_pca
 
 ARMAR3 = get_hand("armar3")
 

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from pipeline.candidates import generate
-from pipeline.hands import HANDS
-from pipeline.kinematics import open_gap
+from pipeline.geometry.candidates import generate
+from pipeline.hands.kinematics import open_gap
+from pipeline.hands.spec import HANDS
 from pipeline.params import Params
 from pipeline.plan import run_chain
 

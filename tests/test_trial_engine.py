@@ -9,9 +9,9 @@ import yaml
 
 from pipeline.artefacts import SurfaceSamples
 from pipeline.errors import BadInputError, BadParamsError
-from pipeline.hands import HANDS, export_hand, get_hand
-from pipeline.kinematics import hand_model, link_poses
-from pipeline.simulation import GraspEngine, check_simulable
+from pipeline.hands.kinematics import hand_model, link_poses
+from pipeline.hands.spec import HANDS, export_hand, get_hand
+from pipeline.trial.engine import GraspEngine, check_simulable
 from test_simulation import cube, surface
 
 
@@ -88,7 +88,7 @@ def test_no_closed_hand_overlaps_the_object(name):
     what would catch it digging in."""
     from scipy.spatial.transform import Rotation
 
-    from pipeline.proximity import collides
+    from pipeline.trial.proximity import collides
 
     rng = np.random.default_rng(8)
     for shape in (surface("primitive:box", extents=(0.05, 0.03, 0.08)), surface("primitive:mug")):
@@ -121,9 +121,9 @@ def test_exit_distance_along_a_ray_from_inside_a_box():
 def test_the_retreat_skips_only_offsets_that_still_collide(name):
     """The retreat jumps over offsets by the exit distance of link points inside the object: at
     every offset it skips (sampled across each jump), the hand still overlaps the object."""
-    from pipeline.kinematics import base_poses
-    from pipeline.proximity import collides
-    from pipeline.simulation import _shifted
+    from pipeline.hands.kinematics import base_poses
+    from pipeline.trial.engine import _shifted
+    from pipeline.trial.proximity import collides
 
     rng = np.random.default_rng(3)
     mug = surface("primitive:mug")
@@ -242,7 +242,7 @@ def test_link_distances_match_a_dense_brute_force_and_never_undershoot():
     dense surface points of each link box (41 per side, open3d) and from every mesh vertex to
     the box (closed form). It never reports a link nearer than it is (no false contact), and
     is within 0.3 mm of the truth (the link edge points are 3 mm apart)."""
-    from pipeline.proximity import measure
+    from pipeline.trial.proximity import measure
 
     box = surface("primitive:box", extents=(0.05, 0.03, 0.08))
     engine = GraspEngine(box, HANDS["barrett"])
@@ -317,8 +317,8 @@ def test_a_point_above_a_face_beside_an_obtuse_edge_is_at_its_plane_distance():
     """A mesh link's hull has obtuse edges (a 10 deg crease here): a point 0.1 mm above one face,
     0.2 mm from the crease, is off both planes, yet its nearest point is on the face, 0.1 mm
     away, not on the crease (0.22 mm)."""
-    from pipeline.kinematics import _hull_edges, _planes
-    from pipeline.proximity import _piece_gap
+    from pipeline.hands.kinematics import _hull_edges, _planes
+    from pipeline.trial.proximity import _piece_gap
 
     tilt = np.radians(10.0)
     ridge = [(x, 0.0, 0.0) for x in (-0.01, 0.01)]
@@ -353,7 +353,7 @@ def test_barrett_on_the_rim_of_the_mugs_6_mm_wall_touches_both_faces():
 @pytest.mark.slow
 def test_outcomes_agree_with_the_pybullet_reference_on_the_duck():
     """20 random MAT candidates per hand on pybullet's duck (6 cm), the engine against
-    :mod:`pipeline.reference_trial` (the same protocol; distances from pybullet, touching pairs
+    :mod:`pipeline.trial.reference` (the same protocol; distances from pybullet, touching pairs
     by brute force). Measured when written (session 13): jaw 20/20, Barrett 19/20 (session 12:
     15 and 17, the floor then 32). The jaw's five differences were the reference's pressing
     test: its numerical derivative of pybullet's float32 link states, 2e-4 of the speed off,
@@ -364,15 +364,15 @@ def test_outcomes_agree_with_the_pybullet_reference_on_the_duck():
     ``near_m`` in both, the engine's pressing test on its 1 mm contact points): jaw 19/20,
     Barrett 20/20; before it the jaw was 16 here (a pad touching the duck's tail pressed at 1 deg
     on the 3 mm closing points, 6.4 deg on the reference's). The floor is 95 % per hand."""
-    from pipeline import sphere_grid
     from pipeline.arrays import vectors
-    from pipeline.candidates import generate
-    from pipeline.mat import reconstruct
-    from pipeline.medial_axis import medial_axis
+    from pipeline.geometry import sphere_grid
+    from pipeline.geometry.candidates import generate
+    from pipeline.geometry.mat import reconstruct
+    from pipeline.geometry.medial_axis import medial_axis
+    from pipeline.geometry.sampling import sample_object
+    from pipeline.geometry.symmetry import classify
     from pipeline.params import ClassifyParams, MatParams, MedialAxisParams, SampleParams
-    from pipeline.reference_trial import ReferenceEngine
-    from pipeline.sampling import sample_object
-    from pipeline.symmetry import classify
+    from pipeline.trial.reference import ReferenceEngine
 
     duck = sample_object(
         "pybullet:duck.obj",
@@ -464,7 +464,7 @@ def test_without_palm_contacts_the_same_closed_hand_is_graded_on_its_fingers_alo
     the pads on two sides. Without palm contacts the hand closes the same (base, joints) and
     keeps exactly the pads' contacts; a hand touching with its palm alone has no contact."""
     from pipeline.params import SimulateParams
-    from pipeline.simulation import TrialSettings, grade
+    from pipeline.trial.engine import grade
 
     target = ([0.0, 0.0, -0.04], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0])
     whole = GraspEngine(cube(), HANDS["parallel_jaw"]).trial(*target)
@@ -481,6 +481,6 @@ def test_without_palm_contacts_the_same_closed_hand_is_graded_on_its_fingers_alo
     palm = whole.contact_links == 0
     regions = [(0, whole.contact_points[palm], whole.contact_normals[palm])]
     for flag, outcome in ((True, "no_force_closure"), (False, "no_contact")):
-        settings = TrialSettings(**SimulateParams(palm_contacts=flag).world_settings())
+        settings = SimulateParams(palm_contacts=flag)
         graded = grade(regions, engine.model, settings, centre=engine.centre, torque_scale=engine.torque_scale)
         assert graded.outcome == outcome

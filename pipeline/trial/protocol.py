@@ -1,0 +1,273 @@
+"""The ``simulate`` stage as functions: pick the candidates to test, add the baseline, run the
+trials (in worker processes) and summarise them.
+
+Protocol (paper IV): per hand, ``spheres_per_object`` random spheres among those with candidates
+for that hand (seeded) and all their candidates; then as many baseline trials; then, as a third
+planner, the same for the hand's ``encompassing`` candidates (:mod:`pipeline.geometry.concavity`), if any.
+
+Baseline (the peer planner of Simox's GenericGraspPlanner and OpenRAVE): a random
+surface sample (area-uniform, as the samples are), approach along its inward normal, a random
+roll about the approach. It runs through the same trial and quality code as the MAT candidates.
+
+Tables
+------
+trials (``trials.parquet``): one row per trial; ``planner`` (mat | baseline | encompassing), ``hand``,
+``candidate_id`` (the candidates table's id; the draw number for the baseline), ``sphere_index``
+and ``sphere_class`` (-1 and "surface" for the baseline), ``preshape``, ``grasp_*``,
+``approach_*``, ``orient_*`` (the target), ``outcome`` (one of :data:`OUTCOMES`), ``epsilon``,
+``contacts``, ``retract_m`` (how far back along -P_d from its placement the hand closed;
+negative past it), ``approach_m`` (how far it came on to contact after retreating clear),
+``base_*`` (position,
+m) and ``base_q*`` (quaternion x, y, z, w) of the hand's URDF base frame as it closed,
+``joints`` (closed joint values in the hand's ``limits`` order), ``close_steps``, ``touched``
+(names of the links in contact), ``finger_stops`` (per finger: contact, limit, step_cap;
+none where the approach missed the object), ``message`` (why a candidate could not be tried,
+or that its approach passed the object, if so).
+
+contacts (``contacts.parquet``): one row per contact; ``trial`` (row number in trials),
+``link`` (the link's index in the hand model, 0 the base link, the palm), ``x, y, z`` (m) and
+``nx, ny, nz`` (the object's outward unit normal).
+"""
+
+import concurrent.futures
+
+import numpy as np
+import pandas as pd
+
+from .. import pool, seeds
+from ..arrays import vectors
+from .engine import OUTCOMES, check_simulable, run_chunk, start_worker, stop_worker
+
+#: the trials' ``planner`` values: the MAT candidates, the surface-normal baseline and the
+#: candidates encompassing a concavity
+PLANNERS = ("mat", "baseline", "encompassing")
+
+# trials advanced together: the closing loop runs as many passes as its slowest trial needs, each
+# a fixed cost of numpy calls, so larger chunks share them over more trials (ARMAR-III on the
+# duck: closing 1.1 s per 512 trials in chunks of 128, 0.67 s in one of 512)
+CHUNK = 512
+
+
+def select_candidates(candidates, hand_name, spheres, rng, *, encompassing=False):
+    """Rows of ``candidates`` for ``hand_name`` on ``spheres`` spheres drawn by the generator
+    ``rng`` (all if fewer): of the ``encompassing`` candidates if true, of the others if false."""
+    around = (candidates.sphere_class == "encompassing").to_numpy()
+    rows = candidates[(candidates.hand == hand_name).to_numpy() & (around == encompassing)]
+    indices = np.unique(rows.sphere_index.to_numpy())
+    if len(indices) > spheres:
+        indices = np.sort(rng.choice(indices, spheres, replace=False))
+    return rows[rows.sphere_index.isin(indices)].reset_index(drop=True)
+
+
+def baseline_candidates(surface, hand, count, rng):
+    """``count`` surface-normal candidates for ``hand`` drawn by the generator ``rng``: random
+    sample, approach = -normal, random roll; same columns as the candidates table."""
+    picks = rng.integers(0, len(surface.points), count)
+    approach = -surface.normals[picks]
+    # any unit vector orthogonal to the approach, then rolled by a uniform angle
+    helper = np.where(np.abs(approach[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    first = np.cross(approach, helper)
+    first /= np.linalg.norm(first, axis=1, keepdims=True)
+    second = np.cross(approach, first)
+    roll = rng.uniform(0.0, 2.0 * np.pi, count)[:, None]
+    orient = np.cos(roll) * first + np.sin(roll) * second
+    grasp = surface.points[picks]
+    return pd.DataFrame(
+        {
+            "hand": hand.name,
+            "id": np.arange(count),
+            "sphere_index": -1,
+            "sphere_class": "surface",
+            "diameter_m": np.nan,
+            "preshape": hand.default_preshape,
+            **{f"grasp_{axis}": grasp[:, k] for k, axis in enumerate("xyz")},
+            **{f"approach_{axis}": approach[:, k] for k, axis in enumerate("xyz")},
+            **{f"orient_{axis}": orient[:, k] for k, axis in enumerate("xyz")},
+        }
+    )
+
+
+def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
+    """One trial per row of each table (candidate columns).
+
+    Parameters
+    ----------
+    surface : SurfaceSamples
+    hands : list of Hand
+    tables : list of (int, pandas.DataFrame)
+        Each table with the number of its hand in ``hands``.
+    settings : SimulateParams or None
+        How the trials run (:class:`pipeline.trial.engine.GraspEngine`'s ``settings``).
+    workers : int
+        Processes; 1 runs in this process. Results do not depend on it.
+    progress : callable(int, int), optional
+        Called with the number of trials just finished and the total.
+
+    Returns
+    -------
+    list (per table) of lists of TrialResult, in table order
+    """
+    chunks = []  # (table number, hand number, targets)
+    for number, (hand_number, table) in enumerate(tables):
+        targets = list(
+            zip(vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), table.preshape)
+        )
+        chunks += [(number, hand_number, targets[start : start + CHUNK]) for start in range(0, len(targets), CHUNK)]
+    results = [[] for _ in tables]
+    total = sum(len(table) for _, table in tables)
+    if workers <= 1 or len(chunks) <= 1:
+        start_worker(surface, hands, settings)
+        try:
+            for number, hand_number, targets in chunks:
+                results[number] += run_chunk(hand_number, targets)
+                if progress:
+                    progress(len(targets), total)
+        finally:
+            stop_worker()
+        return results
+    with concurrent.futures.ProcessPoolExecutor(
+        min(workers, len(chunks)),
+        pool.context(),
+        initializer=start_worker,
+        initargs=(surface, hands, settings),
+    ) as executor:
+        done = executor.map(run_chunk, [chunk[1] for chunk in chunks], [chunk[2] for chunk in chunks])
+        for (number, _, _), chunk in zip(chunks, done):
+            results[number] += chunk
+            if progress:
+                progress(len(chunk), total)
+    return results
+
+
+def simulate(
+    surface, candidates, hands, *, spheres_per_object, baseline_trials, seed=0, workers=1, settings=None, progress=None
+):
+    """Trials of the selected MAT candidates and the baseline for every hand.
+
+    Parameters
+    ----------
+    surface : SurfaceSamples
+    candidates : pandas.DataFrame
+        The candidates table.
+    hands : list of Hand
+    spheres_per_object : int
+    baseline_trials : int
+        Baseline trials per hand; -1 = as many as that hand's MAT trials, 0 = none.
+    seed : int
+    workers : int
+    settings : SimulateParams, optional
+        How the trials run (the defaults when None).
+    progress : callable(int, int), optional
+        Called with the number of trials just finished and the total.
+
+    Returns
+    -------
+    trials, contacts : pandas.DataFrame (see the module docstring)
+    """
+    check_simulable(surface)
+    jobs = []
+    for number, hand in enumerate(hands):
+        # fresh streams for every hand: a hand's trials do not depend on the other hands run with it
+        mat = select_candidates(candidates, hand.name, spheres_per_object, seeds.trial_spheres(seed))
+        count = len(mat) if baseline_trials < 0 else baseline_trials
+        baseline = baseline_candidates(surface, hand, count, seeds.baseline(seed))
+        jobs += [("mat", number, mat), ("baseline", number, baseline)]
+        encompassing = select_candidates(
+            candidates, hand.name, spheres_per_object, seeds.trial_spheres(seed), encompassing=True
+        )
+        if len(encompassing):
+            jobs.append(("encompassing", number, encompassing))
+    results = run_trials(
+        surface,
+        hands,
+        [(number, table) for _, number, table in jobs],
+        settings,
+        workers=workers,
+        progress=progress,
+    )
+    return _tables([(planner, hands[number], table, result) for (planner, number, table), result in zip(jobs, results)])
+
+
+def _tables(blocks):
+    trial_rows, contact_rows, offset = [], [], 0
+    for planner, hand, table, results in blocks:
+        frame = table[
+            ["id", "sphere_index", "sphere_class", "preshape"]
+            + [f"{prefix}_{axis}" for prefix in ("grasp", "approach", "orient") for axis in "xyz"]
+        ].copy()
+        frame = frame.rename(columns={"id": "candidate_id"})
+        frame["sphere_class"] = frame.sphere_class.astype(str)
+        frame.insert(0, "hand", hand.name)
+        frame.insert(0, "planner", planner)
+        frame["outcome"] = [result.outcome for result in results]
+        frame["epsilon"] = [result.epsilon for result in results]
+        frame["contacts"] = [len(result.contact_points) for result in results]
+        frame["retract_m"] = [result.retract_m for result in results]
+        frame["approach_m"] = [result.approach_m for result in results]
+        base = np.array([result.base_position for result in results]).reshape(-1, 3)
+        quaternion = np.array([result.base_orientation for result in results]).reshape(-1, 4)
+        for k, axis in enumerate("xyz"):
+            frame[f"base_{axis}"] = base[:, k]
+        for k, axis in enumerate("xyzw"):
+            frame[f"base_q{axis}"] = quaternion[:, k]
+        frame["joints"] = [list(result.joint_positions) for result in results]
+        frame["close_steps"] = np.array([result.close_steps for result in results], np.int64)
+        frame["touched"] = [list(result.touched) for result in results]
+        frame["finger_stops"] = [list(result.finger_stops) for result in results]
+        frame["message"] = [result.message for result in results]
+        trial_rows.append(frame)
+        for number, result in enumerate(results):
+            if len(result.contact_points):
+                contact_rows.append(
+                    pd.DataFrame(
+                        {
+                            "trial": offset + number,
+                            "link": result.contact_links,
+                            **{axis: result.contact_points[:, k] for k, axis in enumerate("xyz")},
+                            **{f"n{axis}": result.contact_normals[:, k] for k, axis in enumerate("xyz")},
+                        }
+                    )
+                )
+        offset += len(results)
+    trials = pd.concat(trial_rows, ignore_index=True) if trial_rows else pd.DataFrame()
+    if len(trials):
+        trials["outcome"] = pd.Categorical(trials.outcome, categories=OUTCOMES)
+    contacts = (
+        pd.concat(contact_rows, ignore_index=True)
+        if contact_rows
+        else pd.DataFrame(
+            {
+                "trial": pd.Series(dtype=np.int64),
+                "link": pd.Series(dtype=np.int64),
+                **{name: pd.Series(dtype=float) for name in ("x", "y", "z", "nx", "ny", "nz")},
+            }
+        )
+    )
+    return trials, contacts
+
+
+def trial_rates(trials):
+    """``trials``, ``force_closure_rate``, ``mean_epsilon`` (over force-closure trials) and
+    ``outcomes`` counts of a trials table (or a slice of it). A rate or mean of no trials is NaN
+    (null in JSON), never 0."""
+    closed = trials.outcome == "force_closure"
+    return {
+        "trials": int(len(trials)),
+        "force_closure_rate": float(closed.mean()) if len(trials) else float("nan"),
+        "mean_epsilon": float(trials.epsilon[closed].mean()) if closed.any() else float("nan"),
+        "outcomes": {outcome: int((trials.outcome == outcome).sum()) for outcome in OUTCOMES},
+    }
+
+
+def summary(trials):
+    """The JSON-ready results: MAT totals at the top level, ``baseline`` and ``encompassing``
+    beside them and ``per_hand`` for every planner."""
+    planners = {planner: trials[trials.planner == planner] for planner in PLANNERS}
+    return {
+        **trial_rates(planners["mat"]),
+        **{planner: trial_rates(planners[planner]) for planner in PLANNERS[1:]},
+        "per_hand": {
+            hand: {planner: trial_rates(rows[rows.hand == hand]) for planner, rows in planners.items()}
+            for hand in sorted(trials.hand.unique())
+        },
+    }

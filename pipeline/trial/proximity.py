@@ -1,0 +1,417 @@
+"""Hand-object proximity: the distance of each hand link to the object, collisions, and the
+touching pairs, all from one measure so that a link the closing rule stops always has contacts.
+
+The distance of a link to the object is the smaller of two exact one-sided distances:
+
+- link to mesh: the exact distance (:class:`pipeline.geometry.mesh_query.ObjectMesh`) from each of the
+  link's surface points (every corner and edge, faces at the model's spacing) to the mesh;
+- mesh to link: from each mesh feature point near the link (every vertex, and points along
+  every non-flat edge: :class:`pipeline.geometry.mesh_query.Features`) to the link's convex pieces (the plane
+  distance off a face, the nearest hull edge's off an edge or corner: exact); spheres covering
+  each piece bound it where no vertex is near.
+
+Between them they see a link corner on an object face and an object corner on a link face. The
+signed distance grid only skips points that are certainly farther than ``near`` (or certainly
+inside or outside), so a distance at or below ``near`` is always the exact measure above, and
+one above it a lower bound that keeps steps conservative.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..arrays import expand_ranges
+from ..hands.kinematics import transform
+from ..tol import tol
+
+
+@dataclass(frozen=True)
+class Touches:
+    """The pairs of a measure within ``tolerance``: ``pair`` (t,) index of the (trial, link) pair,
+    ``points`` (t, 3) on the object, ``normals`` (t, 3) the object's outward normal there (the
+    touched triangle's; at an object edge or corner minus the link face's, moved into the
+    feature's normal cone on a smooth surface: :func:`pipeline.geometry.mesh_query.feature_contact_normals`)."""
+
+    pair: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+
+
+def _starts(owner, count):
+    return np.searchsorted(owner, np.arange(count + 1))
+
+
+def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=None):
+    """Distance (m) of link ``links[i]`` of pose ``rows[i]`` to the object.
+
+    Parameters
+    ----------
+    mesh : ObjectMesh
+    model : HandModel
+    poses : (n, L, 4, 4) float
+        Link poses (:func:`pipeline.hands.kinematics.link_poses`).
+    rows, links : (m,) int
+        The (pose, link) pairs to measure.
+    near : float
+        Distances at or below it are exact (see the module docstring).
+    tolerance : float, optional
+        Also return the :class:`Touches` within it (``tolerance <= near``).
+    features : Features, optional
+        The mesh features measured against the links (default ``mesh.features``).
+
+    Returns
+    -------
+    (m,) float, and Touches when ``tolerance`` is given. Links without geometry are inf.
+    """
+    count = len(model.links)
+    features = mesh.features if features is None else features
+    flat = poses.reshape(-1, 4, 4)
+    slot = rows * count + links
+    distance = np.full(len(rows), np.inf)
+    radius = model.link_radius[links]
+    centre = transform(flat, slot, model.link_centre[links])
+    bound = mesh.clearance(centre) - radius
+    has = radius > 0
+    close = np.flatnonzero(has & (bound <= near))
+    distance[has] = np.maximum(bound[has], 0.0)
+    distance[close] = np.inf
+    touches = ([], [], [])
+    if len(close):
+        pair, cover, centres, clearance = _covers(mesh, model, flat, slot, close)
+        # link points: those of cover spheres within reach; the others are farther than
+        # ``near``, bounded below by their sphere
+        far = clearance - model.cover_reach[cover] > near
+        _minimum_at(distance, pair[far], clearance[far] - model.cover_reach[cover[far]])
+        point_pair, point, world = _cover_points(model, flat, slot, pair[~far], cover[~far])
+        lower = mesh.clearance(world)
+        exact = lower <= near
+        found = mesh.closest(world[exact])
+        lower[exact] = found.distances
+        _minimum_at(distance, point_pair, lower)
+        if tolerance is not None:
+            hit = found.distances <= tolerance
+            normals = found.normals[hit]
+            # on an object edge or corner the contact is the object's feature against the link's
+            # face (the mesh-to-link side's normal), not against one of the faces meeting there;
+            # on a smooth surface's facet seams, the surface's normal
+            border = mesh.on_border(found.at(hit))
+            on_edge = np.flatnonzero(exact)[hit][border]
+            link_face = _link_face_normal(
+                model,
+                flat,
+                slot[point_pair[on_edge]],
+                point[on_edge],
+                world[on_edge] - found.points[hit][border],
+                normals[border],
+            )
+            normals[border] = mesh.clamp_on_border(link_face, found.at(hit).at(border))
+            touches[0].append(point_pair[exact][hit])
+            touches[1].append(found.points[hit])
+            touches[2].append(normals)
+        bounds = []
+        pair, vertex, signed, normal = _vertex_side(
+            features, model, flat, slot, pair, cover, centres, clearance, near, bounds
+        )
+        _minimum_at(distance, *bounds[0])
+        gap = np.maximum(signed, 0.0)
+        _minimum_at(distance, pair, gap)
+        if tolerance is not None:
+            hit = gap <= tolerance
+            touches[0].append(pair[hit])
+            touches[1].append(features.points[vertex[hit]])
+            touches[2].append(features.clamp(-normal[hit], vertex[hit]))
+    if tolerance is None:
+        return distance
+    joined = [
+        np.concatenate(part) if part else np.zeros((0,) + shape) for part, shape in zip(touches, ((), (3,), (3,)))
+    ]
+    return distance, Touches(joined[0].astype(np.int64), *joined[1:])
+
+
+def _covers(mesh, model, flat, slot, close):
+    """The cover spheres of the pairs ``close``: their pair (k,), cover (k,), world centres (k, 3)
+    and clearance (k,) m (a lower bound on their centres' distance to the object)."""
+    count = len(model.links)
+    starts = _starts(model.piece_link[model.cover_piece], count)
+    link = slot[close] % count
+    owner, cover = expand_ranges(starts[link], np.diff(starts)[link])
+    pair = close[owner]
+    centres = transform(flat, slot[pair], model.cover_centre[cover])
+    return pair, cover, centres, mesh.clearance(centres)
+
+
+def _cover_points(model, flat, slot, pair, cover):
+    """The link points of cover spheres ``cover`` (k,) of pairs ``pair`` (k,): their pair (m,),
+    index in ``model.points`` (m,) and world positions (m, 3)."""
+    starts = _starts(model.point_cover, len(model.cover_radius))
+    owner, point = expand_ranges(starts[cover], np.diff(starts)[cover])
+    return pair[owner], point, transform(flat, slot[pair[owner]], model.points[point])
+
+
+def _link_face_normal(model, flat, slot, point, offset, fallback):
+    """(k, 3) outward object normals of link points ``point`` (k,) (of the link poses
+    ``flat[slot]``) off an object edge or corner by ``offset`` (k, 3), world: minus the normal
+    of the link face through the point that best faces the object there (the largest
+    ``-n . offset``), as the mesh-to-link side gives an object feature under a link face; a
+    point on no face of its piece's hull (inside a concave mesh shape) keeps ``fallback``."""
+    rotation = flat[slot, :3, :3]
+    local_offset = np.einsum("kji,kj->ki", rotation, offset)
+    planes = model.planes[model.cover_piece[model.point_cover[point]]]  # (k, F, 4), padded with -inf
+    signed = np.einsum("kfi,ki->kf", planes[..., :3], model.points[point]) + planes[..., 3]
+    score = np.where(np.abs(signed) <= tol.edge_tie_m, -np.einsum("kfi,ki->kf", planes[..., :3], local_offset), -np.inf)
+    best = score.argmax(axis=1)
+    rows = np.arange(len(point))
+    normal = -np.einsum("kij,kj->ki", rotation, planes[rows, best, :3])
+    return np.where(np.isfinite(score[rows, best])[:, None], normal, fallback)
+
+
+def _vertex_side(features, model, flat, slot, pair, cover, centres, clearance, near, bounds=None):
+    """Mesh ``features`` (:class:`pipeline.geometry.mesh_query.Features`) within ``near`` of the convex
+    pieces of the cover spheres ``cover`` of pairs ``pair`` (:func:`_covers`, with their ``centres`` and ``clearance``): their pair (k,),
+    feature (k,), distance to the piece (k,) m (the largest plane distance, negative, inside) and the contact
+    normal (k, 3) pointing out of the link (:func:`_piece_gap`). ``bounds``, a list, receives (pairs, m) of
+    the cover spheres too far for any vertex to be within ``near``: their lower bounds, which
+    keep the link's distance a bound when its nearest part is a face away from its edges."""
+    empty = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 3)))
+    reach = model.cover_radius[cover] + near
+    needed = clearance <= reach  # a cover sphere farther than its reach holds no vertex
+    if bounds is not None:
+        # a far cover is at least its clearance less its radius away; past a near one's reach,
+        # every feature is farther than ``near`` from it (just above near: never a touch)
+        bounds.append((pair, np.where(needed, np.nextafter(near, np.inf), clearance - model.cover_radius[cover])))
+    if not needed.any():
+        return empty
+    pair, cover = pair[needed], cover[needed]
+    rows, vertex, gap, face_normal = _feature_hits(
+        flat,
+        slot[pair],
+        centres[needed],
+        reach[needed],
+        model.cover_piece[cover],
+        features.points,
+        features.normals,
+        features.cells,
+        model.planes,
+        model.piece_edges,
+        model.edge_planes,
+        near,
+        tol.edge_tie_m,
+    )
+    normal = np.einsum("mij,mj->mi", flat[slot[pair[rows]], :3, :3], face_normal)
+    return pair[rows], vertex, gap, normal
+
+
+@njit(cache=True)
+def _feature_hits(
+    poses, slots, centres, reach, pieces, features, feature_normals, cells, planes, edges, sides, near, tie
+):
+    """The features within ``near`` of the cover spheres' pieces (``centres`` (c, 3) world,
+    ``reach`` (c,) m, ``pieces`` (c,), carried by the link poses ``poses[slots]``): per hit the
+    cover's row, the feature, the piece distance and the normal (link frame) of
+    :func:`_piece_gap`. A feature in several covers of one piece in a row counts once."""
+    origin, size, shape, starts, items = cells
+    capacity = 1024
+    rows, found, gaps, normals = (
+        np.empty(capacity, np.int64),
+        np.empty(capacity, np.int64),
+        np.empty(capacity),
+        np.empty((capacity, 3)),
+    )
+    seen = np.full(len(features), -1, np.int64)
+    hits, group, previous = 0, -1, (-1, -1)
+    local, facing = np.empty(3), np.empty(3)
+    low, high = np.empty(3, np.int64), np.empty(3, np.int64)
+    for row in range(len(centres)):
+        piece = pieces[row]
+        if (slots[row], piece) != previous:
+            group, previous = group + 1, (slots[row], piece)
+        pose = poses[slots[row]]
+        for axis in range(3):
+            low[axis] = max(int(np.floor((centres[row, axis] - reach[row] - origin[axis]) / size)), 0)
+            high[axis] = min(int(np.floor((centres[row, axis] + reach[row] - origin[axis]) / size)), shape[axis] - 1)
+        for i in range(low[0], high[0] + 1):
+            di = _beyond(centres[row, 0] - origin[0], i, size)
+            for j in range(low[1], high[1] + 1):
+                dj = di + _beyond(centres[row, 1] - origin[1], j, size)
+                if dj > reach[row] * reach[row]:
+                    continue
+                for k in range(low[2], high[2] + 1):
+                    # a cell whose box lies beyond the reach holds no feature within it
+                    if dj + _beyond(centres[row, 2] - origin[2], k, size) > reach[row] * reach[row]:
+                        continue
+                    cell = (i * shape[1] + j) * shape[2] + k
+                    for position in range(starts[cell], starts[cell + 1]):
+                        feature = items[position]
+                        if seen[feature] == group:
+                            continue
+                        dx = features[feature, 0] - centres[row, 0]
+                        dy = features[feature, 1] - centres[row, 1]
+                        dz = features[feature, 2] - centres[row, 2]
+                        if dx * dx + dy * dy + dz * dz > reach[row] * reach[row]:
+                            continue
+                        seen[feature] = group
+                        mx = features[feature, 0] - pose[0, 3]
+                        my = features[feature, 1] - pose[1, 3]
+                        mz = features[feature, 2] - pose[2, 3]
+                        for axis in range(3):
+                            local[axis] = pose[0, axis] * mx + pose[1, axis] * my + pose[2, axis] * mz
+                            facing[axis] = -(
+                                pose[0, axis] * feature_normals[feature, 0]
+                                + pose[1, axis] * feature_normals[feature, 1]
+                                + pose[2, axis] * feature_normals[feature, 2]
+                            )
+                        gap, face = _piece_gap(planes[piece], edges[piece], sides[piece], local, facing, near, tie)
+                        if gap > near:  # the covers bound the farther ones
+                            continue
+                        if hits == capacity:
+                            capacity *= 2
+                            rows, found, gaps, normals = (
+                                _grown(rows, capacity),
+                                _grown(found, capacity),
+                                _grown(gaps, capacity),
+                                _grown(normals, capacity),
+                            )
+                        rows[hits], found[hits], gaps[hits] = row, feature, gap
+                        for axis in range(3):
+                            normals[hits, axis] = planes[piece, face, axis]
+                        hits += 1
+    return rows[:hits], found[:hits], gaps[:hits], normals[:hits]
+
+
+@njit(cache=True)
+def _beyond(coordinate, index, size):
+    """Squared distance along one axis from ``coordinate`` to cell ``index`` of ``size`` (0 inside)."""
+    gap = max(index * size - coordinate, coordinate - (index + 1) * size, 0.0)
+    return gap * gap
+
+
+@njit(cache=True)
+def _grown(values, capacity):
+    out = np.empty((capacity,) + values.shape[1:], values.dtype)
+    out[: len(values)] = values
+    return out
+
+
+@njit(cache=True)
+def _piece_gap(planes, edges, sides, local, facing, near, tie):
+    """Signed distance of the link-frame point ``local`` (3,) to its convex piece (``planes``
+    (F, 4), ``edges`` (E, 2, 3), ``sides`` (E, 2), padded) and the plane (row of ``planes``)
+    whose normal is the contact's; beyond ``near`` only a lower bound (the largest plane
+    distance).
+
+    Off a face (its foot on the face's plane inside the piece) that face's plane distance;
+    off an edge or corner the nearest hull edge's distance, and of the faces at the nearest
+    edges the one whose normal best agrees with ``facing`` (the object's inward normal there,
+    link frame), the link having no normal of its own there. Scalar loops: this runs per
+    feature, where small arrays would cost more than the arithmetic."""
+    x, y, z = local[0], local[1], local[2]
+    gap, face, count, above = -np.inf, 0, 0, 0
+    while count < len(planes) and planes[count, 3] > -np.inf:
+        signed = planes[count, 0] * x + planes[count, 1] * y + planes[count, 2] * z + planes[count, 3]
+        if signed > gap:
+            gap, face = signed, count
+        above += signed > 0
+        count += 1
+    if gap > near or above <= 1:
+        return gap, face
+    # the largest plane distance is the distance when the point's foot on that face lies in
+    # the piece (a point above a face beside an obtuse edge is off both planes)
+    inside = True
+    for plane in range(count):
+        cosine = (
+            planes[plane, 0] * planes[face, 0] + planes[plane, 1] * planes[face, 1] + planes[plane, 2] * planes[face, 2]
+        )
+        signed = planes[plane, 0] * x + planes[plane, 1] * y + planes[plane, 2] * z + planes[plane, 3]
+        if signed - gap * cosine > 0:
+            inside = False
+            break
+    if inside:
+        return gap, face
+    best, used = np.inf, 0
+    while used < len(edges) and np.isfinite(edges[used, 0, 0]):
+        best = min(best, _segment_distance(x, y, z, edges[used]))
+        used += 1
+    # at a corner several edges are nearest: all their faces are candidates, so that the
+    # choice does not hang on rounding
+    agree = -np.inf
+    for edge in range(used):
+        if _segment_distance(x, y, z, edges[edge]) <= best + tie:
+            for side in range(2):
+                plane = sides[edge, side]
+                value = planes[plane, 0] * facing[0] + planes[plane, 1] * facing[1] + planes[plane, 2] * facing[2]
+                if value > agree:
+                    agree, face = value, plane
+    return best, face
+
+
+@njit(cache=True)
+def _segment_distance(x, y, z, segment):
+    """Distance of the point (x, y, z) to the (2, 3) ``segment``."""
+    ox, oy, oz = x - segment[0, 0], y - segment[0, 1], z - segment[0, 2]
+    sx, sy, sz = segment[1, 0] - segment[0, 0], segment[1, 1] - segment[0, 1], segment[1, 2] - segment[0, 2]
+    along = min(max((ox * sx + oy * sy + oz * sz) / (sx * sx + sy * sy + sz * sz), 0.0), 1.0)
+    rx, ry, rz = ox - along * sx, oy - along * sy, oz - along * sz
+    return np.sqrt(rx * rx + ry * ry + rz * rz)
+
+
+@njit(cache=True)
+def _minimum_at(out, index, values):
+    """``np.minimum.at(out, index, values)``, in place: out[index[i]] = min(out[index[i]], values[i])
+    (numpy's unbuffered ``at`` costs about 0.1 ms a call on the trial's arrays)."""
+    for position in range(len(index)):
+        if values[position] < out[index[position]]:
+            out[index[position]] = values[position]
+
+
+def collides(mesh, model, poses, *, overlap=None, along=None):
+    """The hand at each of the (n, L, 4, 4) link poses overlaps the object: a link's surface
+    point inside the mesh, or a mesh vertex deeper than ``overlap`` (m) inside a link's convex
+    piece (default :attr:`pipeline.tol.Tolerances.overlap_m`). A link swallowed whole by the
+    object has its points inside; an object part swallowed by a link has its vertices inside.
+
+    Returns (n,) bool, and (n,) how far (m) each overlapping hand can certainly be translated
+    and still overlap (0 if none is known): in any direction, from the distance grid's bounds on
+    points inside; with ``along`` (n, 3) unit directions, translated along them, at least as far
+    as the nearest exit of the mesh of any point found inside (exact ray casts)."""
+    overlap = tol.overlap_m if overlap is None else overlap
+    count, total = len(model.links), len(poses)
+    flat = poses.reshape(-1, 4, 4)
+    slot = np.arange(total * count)
+    rows, links = np.divmod(slot, count)
+    radius = model.link_radius[links]
+    low, high = mesh.bounds(transform(flat, slot, model.link_centre[links]))
+    swallowed = (high < -radius) & (radius > 0)  # the whole link is inside
+    hit = np.zeros(total, bool)
+    hit[rows[swallowed]] = True
+    # signed distance is 1-Lipschitz: a point at most s < 0 inside stays inside for a move < -s;
+    # per hand the deepest such bound (the most negative s), so depth = -deepest
+    deepest = np.zeros(total)
+    _minimum_at(deepest, rows[swallowed], high[swallowed] + radius[swallowed])
+    unsure = np.flatnonzero((radius > 0) & (low <= radius) & (high >= -radius) & ~hit[rows])
+    if not len(unsure):
+        return hit, -deepest
+    # every link point of those links (a sphere-level cull costs more than it saves here: a
+    # hand being retreated is close to the surface)
+    starts = _starts(model.point_link, count)
+    owner, point = expand_ranges(starts[links[unsure]], np.diff(starts)[links[unsure]])
+    pair = unsure[owner]
+    world = transform(flat, pair, model.points[point])
+    low, high = mesh.bounds(world)
+    inside = high < 0
+    _minimum_at(deepest, rows[pair[inside]], high[inside])
+    hit[rows[pair[inside]]] = True
+    # the exact (ray parity) test only where the grid is unsure and the hand not yet known to hit
+    check = np.flatnonzero((low <= 0) & ~inside & ~hit[rows[pair]])
+    inside[check] = mesh.inside(world[check])
+    hit[rows[pair[inside]]] = True
+    if along is not None and inside.any():
+        # a point inside stays inside until its ray along the move leaves the mesh (a margin
+        # for the casts' float32)
+        owner = rows[pair[inside]]
+        exit_m = mesh.exit_distance(world[inside], along[owner]) - 1e-6
+        _minimum_at(deepest, owner, -exit_m)
+    unsure = unsure[~hit[rows[unsure]]]  # the vertex test only where no link point is inside
+    pair, _, signed, _ = _vertex_side(mesh.features, model, flat, slot, *_covers(mesh, model, flat, slot, unsure), 0.0)
+    hit[rows[pair[signed < -overlap]]] = True
+    return hit, -deepest
