@@ -14,7 +14,7 @@ from pipeline.__main__ import main
 from pipeline.hands.kinematics import hand_model, link_poses
 from pipeline.hands.spec import get_hand
 from pipeline.outputs.evaluate import confusion, roc_auc
-from pipeline.outputs.export import replay_file
+from pipeline.outputs.replay import replay_file
 from pipeline.outputs.grasp_sets import GRIPPER_FRAMES, read_grasp_set
 from pipeline.params import CheckParams, Params, SampleParams, SimulateParams
 from pipeline.plan import run_chain, summary, write_plan

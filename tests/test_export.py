@@ -21,7 +21,10 @@ from pipeline.artefacts import SurfaceSamples, write_table
 from pipeline.checks.protocol import with_checks
 from pipeline.hands.kinematics import hand_model
 from pipeline.hands.spec import export_hand, get_hand, load_hand
-from pipeline.outputs.export import EXPORTED, closed_poses, find_runs, rank_order, read_grasps, replay_file
+from pipeline.outputs.export import EXPORTED, closed_poses, rank_order
+from pipeline.outputs.export_files import read_grasps
+from pipeline.outputs.export_runs import find_runs
+from pipeline.outputs.replay import replay_file
 from pipeline.params import CheckParams, Params, SampleParams, SimulateParams
 from pipeline.plan import run_chain, summary, write_plan
 from pipeline.trial.engine import GraspEngine

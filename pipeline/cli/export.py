@@ -44,7 +44,8 @@ def run(args):
     import time
 
     from ..hands.spec import load_hand
-    from ..outputs.export import export, find_runs
+    from ..outputs.export import export
+    from ..outputs.export_runs import find_runs
 
     start = time.perf_counter()
     hands = [load_hand(path) for path in args.hand]

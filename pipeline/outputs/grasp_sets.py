@@ -158,7 +158,7 @@ def _open_joints(path, hand, gripper, configuration, count):
 def _mesh(path, mesh, file_entry, scale):
     """(vertices, faces, mesh file) of the object: ``mesh`` if given, else ``file_entry``
     (absolute, or relative to the grasp file's folder), times ``scale``, never recentred."""
-    from .export import load_mesh
+    from .export_runs import load_mesh
 
     if mesh is None:
         if not file_entry:
@@ -267,7 +267,7 @@ def _read_hdf5(path):
 
 def _read_json(path):
     """The entries of one of the project's JSON exports (their label: the recorded force closure)."""
-    from .export import read_grasps
+    from .export_files import read_grasps
 
     try:
         json.loads(path.read_text())
