@@ -9,11 +9,12 @@ overlap, and the objects do not share files until the report. So:
 1. ``python -m pipeline.dag``: the stage files of params.yaml's objects;
 2. ``dvc repro -s`` of the ``code`` stages (the fingerprints every lane reads);
 3. ``jobs`` lanes, each taking the next object and running ``dvc --wait-for-lock repro -s`` of
-   its stage files in DAG order up to ``candidates`` (a stage that is up to date is skipped, as
-   in ``dvc repro``), while one more process compiles the trial engine's numba kernels into
-   their cache (:func:`compile_kernels`): every trial process would otherwise compile them
-   itself until one has written the cache, four at once on a fresh clone (3.5 min);
-4. the same lanes over the objects' ``simulate`` stages;
+   its stage files in DAG order up to the last stage before the trial engine's first
+   (:func:`phases`: ``candidates``; a stage that is up to date is skipped, as in ``dvc repro``),
+   while one more process compiles the trial engine's numba kernels into their cache
+   (:func:`compile_kernels`): every trial process would otherwise compile them itself until one
+   has written the cache (38 s of one core for the two default hands);
+4. the same lanes over the objects' other stages (``simulate``, ``decompose``, ``check``);
 5. ``dvc repro``: the report, and DVC's own check that nothing else is left to run.
 
 Every run is the one ``dvc repro`` would make (the stages are deterministic and do not depend
@@ -38,6 +39,16 @@ DVC = [sys.executable, "-m", "dvc"]
 def lane_targets(object_name, stages=STAGES):
     """Repository-relative stage files of one object for ``stages``, in DAG order."""
     return [object_stage_file(entry.name, object_name) for entry in stages]
+
+
+def phases(stages=STAGES):
+    """(the stages before the first whose code runs the trial engine, the rest): the lanes run
+    the first part while the engine's kernels compile, the rest after."""
+    engine = "pipeline/trial/engine.py"
+    for number, entry in enumerate(stages):
+        if engine in dag.code_deps(entry.name):
+            return stages[:number], stages[number:]
+    return stages, ()
 
 
 def compile_kernels(hands):
@@ -150,10 +161,11 @@ def main(argv=None):
         ],
         cwd=ROOT,
     )
-    failed = run_lanes(objects, jobs, STAGES[:-1])
+    before, after = phases()
+    failed = run_lanes(objects, jobs, before)
     if kernels.wait():
         raise SystemExit("error: compiling the trial engine's kernels failed (see above)")
-    failed = failed or run_lanes(objects, jobs, STAGES[-1:])
+    failed = failed or run_lanes(objects, jobs, after)
     if failed:
         for name, tail in failed.items():
             print(f"\n{name} failed; its last lines:\n" + "\n".join(tail), file=sys.stderr)

@@ -60,3 +60,14 @@ def test_first_failed_lane_stops_new_objects(tmp_path, monkeypatch):
     # the lane beside it finishes its object; nobody starts the remaining ones
     ran = set(read_log(log))
     assert "broken" in ran and "b" in ran and not {"d", "e"} & ran
+
+
+def test_stages_that_run_trials_wait_for_the_compiled_kernels():
+    before, after = repro.phases()
+    assert before + after == dag.STAGES
+    engine = "pipeline/trial/engine.py"
+    assert [entry.name for entry in before if engine in dag.code_deps(entry.name)] == []
+    assert after[0].name == "simulate" and engine in dag.code_deps("simulate")
+    assert "check" in [entry.name for entry in after]  # its robust copies run trials too
+    trials_first = dag.STAGES[[entry.name for entry in dag.STAGES].index("simulate") :]
+    assert repro.phases(trials_first) == ((), trials_first)
