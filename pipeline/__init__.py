@@ -14,7 +14,8 @@ The modules left at this level are the plumbing: artefact types and their files
 (:mod:`.dag`), a stage's inputs and logs (:mod:`.stage_io`, :mod:`.logbook`), the in-process
 chain and batch (:mod:`.plan`, :mod:`.batch`), ``dvc repro`` in lanes (:mod:`.repro`), worker
 processes (:mod:`.pool`), the benchmarks (:mod:`.bench`), data-tree comparison
-(:mod:`.compare`) and the command line (:mod:`pipeline.__main__`). Functions take and return
+(:mod:`.compare`) and the command line (:mod:`pipeline.__main__`, one module per subcommand in
+:mod:`pipeline.cli`). Functions take and return
 numpy arrays or artefact dataclasses; randomness comes in as a seed or a generator. Files are
 read and written by the stages in ``stages/``, the CLI and the plumbing.
 """

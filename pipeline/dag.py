@@ -140,7 +140,7 @@ STAGES = (
         "decompose",
         ("surface",),
         ("parts",),
-        ("checks.vhacd_resolution",),
+        ("checks.vhacd_resolution", "checks.physics"),
         "pipeline.checks.physics:decompose",
     ),
     Stage(

@@ -1,6 +1,7 @@
 """Stage ``decompose``: python -m stages.decompose SURFACE.npz PARTS.npz [--timing T.json] [--log L.mcap]
 
-The object's convex parts (pybullet's V-HACD), the dynamic body of the physics check.
+The object's convex parts (pybullet's V-HACD), the dynamic body of the physics check; none
+(no V-HACD) when ``checks.physics`` is false.
 """
 
 from pipeline.artefacts import SurfaceSamples
@@ -11,7 +12,8 @@ from pipeline.stage_io import one_line_errors, params, stage_args, stage_run
 @one_line_errors
 def main(argv=None):
     args = stage_args(__doc__, "surface", "parts", argv=argv)
-    used = {"vhacd_resolution": params().checks.vhacd_resolution}
+    checks = params().checks
+    used = {"vhacd_resolution": checks.vhacd_resolution, "physics": checks.physics}
     with stage_run(args, "decompose", params=used, inputs=[args.surface], outputs=[args.parts]) as run:
         parts = decompose(SurfaceSamples.load(args.surface), **used)
         parts.save(args.parts)

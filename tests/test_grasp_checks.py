@@ -167,3 +167,17 @@ def test_the_report_shows_each_engine_and_their_agreement(run):
         assert rows.checked.sum() == (combined[f"{check}_outcome"] != "").sum()
     plots = report.calibration_plots(calibration)
     assert {"mat", "baseline", "mat_mujoco", "baseline_mujoco_open", "mat_mujoco_open_checked"} <= set(plots["epsilon"])
+
+
+def test_without_the_physics_checks_decompose_runs_no_v_hacd_and_the_checks_need_no_parts(run, tmp_path):
+    surface, trials, parts = run
+    assert len(parts.parts) >= 1 and len(parts.vertices) >= 8  # V-HACD's hull of the cube
+    none = decompose(surface, physics=False)
+    assert none.parts == [] and none.vertices.shape == (0, 3) and none.key != parts.key
+    none.save(tmp_path / "parts.npz")
+    empty = type(parts).load(tmp_path / "parts.npz")
+    assert empty.parts == [] and empty.key == none.key
+    # robust force closure alone needs no parts: the same as with them
+    pd.testing.assert_frame_equal(checked((surface, trials, empty), physics=False), checked(run, physics=False))
+    with pytest.raises(ArtefactError, match="convex parts are empty"):
+        checked((surface, trials, empty))

@@ -157,9 +157,12 @@ class ConvexParts(_Artefact):
         return [self.vertices[a:b] for a, b in zip(self.part_start[:-1], self.part_start[1:])]
 
 
-def decompose(surface, *, vhacd_resolution=1000000):
+def decompose(surface, *, vhacd_resolution=1000000, physics=True):
     """The :class:`ConvexParts` of ``surface``'s mesh (a SurfaceSamples with faces), by V-HACD
-    with ``vhacd_resolution`` voxels."""
+    with ``vhacd_resolution`` voxels; none without the ``physics`` checks, which alone use them."""
+    if not physics:
+        key = content_key("decompose", {"vhacd_resolution": vhacd_resolution, "physics": False}, surface.key)
+        return ConvexParts(np.empty((0, 3)), np.zeros(1, np.int64), key=key)
     client = BulletClient()
     try:
         parts = convex_parts(surface.vertices, surface.faces, client=client.client, resolution=vhacd_resolution)

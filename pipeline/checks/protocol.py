@@ -114,6 +114,10 @@ def check_trials(surface, trial_table, parts, *, hands, seed, settings, workers=
     if not picked:
         return empty_checks()
     engines = [engine for engine in ("pybullet", "mujoco") if physics and params.engine in (engine, "both")]
+    if engines and len(parts.part_start) < 2:
+        raise ArtefactError(
+            "the convex parts are empty (decompose ran with checks.physics false): `dvc repro` reruns decompose"
+        )
     total = sum(len(rows) for _, _, rows, _ in picked) * (len(engines) + robust_samples)
     physics_settings = PhysicsSettings(**params.physics_settings(settings.mu))
     mujoco_settings = MujocoSettings.from_params(params, settings.mu) if "mujoco" in engines else None

@@ -79,13 +79,21 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
     touches = ([], [], [])
     if len(close):
         pair, cover, centres, clearance = _covers(mesh, model, flat, slot, close)
+        keep = -np.inf if tolerance is None else tolerance
+        # the mesh-to-link side first: its cheap, exact gaps let the link points below skip the
+        # exact queries (the costly part) of every point that cannot lower its link's distance
+        feature_pair, vertex, _, normal = _vertex_side(
+            features, model, flat, slot, pair, cover, centres, clearance, near, distance, floor=0.0, keep=keep
+        )
         # link points: those of cover spheres within reach; the others are farther than
         # ``near``, bounded below by their sphere
         far = clearance - model.cover_reach[cover] > near
         _minimum_at(distance, pair[far], clearance[far] - model.cover_reach[cover[far]])
         point_pair, point, world = _cover_points(model, flat, slot, pair[~far], cover[~far])
         lower = mesh.clearance(world)
-        exact = lower <= near
+        # a point's exact distance is at least its bound: past its link's distance so far (and
+        # the touch tolerance) it changes neither the distance nor the touches
+        exact = lower <= np.minimum(near, np.maximum(keep, distance[point_pair] + PRUNE_SLACK_M))
         found = mesh.closest(world[exact])
         lower[exact] = found.distances
         _minimum_at(distance, point_pair, lower)
@@ -109,18 +117,9 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
             touches[0].append(point_pair[exact][hit])
             touches[1].append(found.points[hit])
             touches[2].append(normals)
-        bounds = []
-        pair, vertex, signed, normal = _vertex_side(
-            features, model, flat, slot, pair, cover, centres, clearance, near, bounds
-        )
-        _minimum_at(distance, *bounds[0])
-        gap = np.maximum(signed, 0.0)
-        _minimum_at(distance, pair, gap)
-        if tolerance is not None:
-            hit = gap <= tolerance
-            touches[0].append(pair[hit])
-            touches[1].append(features.points[vertex[hit]])
-            touches[2].append(features.clamp(-normal[hit], vertex[hit]))
+            touches[0].append(feature_pair)
+            touches[1].append(features.points[vertex])
+            touches[2].append(features.clamp(-normal, vertex))
     if tolerance is None:
         return distance
     joined = [
@@ -166,20 +165,24 @@ def _link_face_normal(model, flat, slot, point, offset, fallback):
     return np.where(np.isfinite(score[rows, best])[:, None], normal, fallback)
 
 
-def _vertex_side(features, model, flat, slot, pair, cover, centres, clearance, near, bounds=None):
-    """Mesh ``features`` (:class:`pipeline.geometry.mesh_query.Features`) within ``near`` of the convex
-    pieces of the cover spheres ``cover`` of pairs ``pair`` (:func:`_covers`, with their ``centres`` and ``clearance``): their pair (k,),
-    feature (k,), distance to the piece (k,) m (the largest plane distance, negative, inside) and the contact
-    normal (k, 3) pointing out of the link (:func:`_piece_gap`). ``bounds``, a list, receives (pairs, m) of
-    the cover spheres too far for any vertex to be within ``near``: their lower bounds, which
-    keep the link's distance a bound when its nearest part is a face away from its edges."""
+def _vertex_side(features, model, flat, slot, pair, cover, centres, clearance, near, best, *, floor, keep):
+    """Mesh ``features`` (:class:`pipeline.geometry.mesh_query.Features`) against the convex pieces of
+    the cover spheres ``cover`` of pairs ``pair`` (:func:`_covers`, with their ``centres`` and
+    ``clearance``).
+
+    Lowers ``best`` (one entry per pair, in place) to the ``max(distance, floor)`` of every
+    feature within ``near`` of a pair's pieces (the distance to the piece: the largest plane
+    distance, negative inside), and to the lower bound of each cover sphere too far for any
+    feature to be within ``near`` (which keeps a link's distance a bound when its nearest part
+    is a face away from its edges). Returns the features at most ``keep`` from their piece:
+    their pair (k,), feature (k,), distance (k,) m and contact normal (k, 3) pointing out of
+    the link (:func:`_piece_gap`)."""
     empty = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 3)))
     reach = model.cover_radius[cover] + near
     needed = clearance <= reach  # a cover sphere farther than its reach holds no vertex
-    if bounds is not None:
-        # a far cover is at least its clearance less its radius away; past a near one's reach,
-        # every feature is farther than ``near`` from it (just above near: never a touch)
-        bounds.append((pair, np.where(needed, np.nextafter(near, np.inf), clearance - model.cover_radius[cover])))
+    # a far cover is at least its clearance less its radius away; past a near one's reach,
+    # every feature is farther than ``near`` from it (just above near: never a touch)
+    _minimum_at(best, pair, np.where(needed, np.nextafter(near, np.inf), clearance - model.cover_radius[cover]))
     if not needed.any():
         return empty
     pair, cover = pair[needed], cover[needed]
@@ -189,6 +192,10 @@ def _vertex_side(features, model, flat, slot, pair, cover, centres, clearance, n
         centres[needed],
         reach[needed],
         model.cover_piece[cover],
+        pair,
+        best,
+        floor,
+        keep,
         features.points,
         features.normals,
         features.cells,
@@ -202,14 +209,38 @@ def _vertex_side(features, model, flat, slot, pair, cover, centres, clearance, n
     return pair[rows], vertex, gap, normal
 
 
+#: a feature whose plane distance to a piece is this far past its pair's best is skipped: its
+#: exact distance can only be larger (the planes are rounded to 1e-9 m; ample room)
+PRUNE_SLACK_M = 1e-6
+
+
 @njit(cache=True)
 def _feature_hits(
-    poses, slots, centres, reach, pieces, features, feature_normals, cells, planes, edges, sides, near, tie
+    poses,
+    slots,
+    centres,
+    reach,
+    pieces,
+    targets,
+    best,
+    floor,
+    keep,
+    features,
+    feature_normals,
+    cells,
+    planes,
+    edges,
+    sides,
+    near,
+    tie,
 ):
-    """The features within ``near`` of the cover spheres' pieces (``centres`` (c, 3) world,
-    ``reach`` (c,) m, ``pieces`` (c,), carried by the link poses ``poses[slots]``): per hit the
-    cover's row, the feature, the piece distance and the normal (link frame) of
-    :func:`_piece_gap`. A feature in several covers of one piece in a row counts once."""
+    """The features near the cover spheres' pieces (``centres`` (c, 3) world, ``reach`` (c,) m,
+    ``pieces`` (c,), carried by the link poses ``poses[slots]``). Lowers ``best[targets[row]]``
+    to ``max(distance, floor)`` of each feature within ``near`` of a row's piece, and returns
+    those at most ``keep`` from it: per hit the cover's row, the feature, the piece distance and
+    the normal (link frame) of :func:`_piece_gap`. A feature in several covers of one piece in a
+    row counts once. A feature that cannot lower ``best`` and is past ``keep`` is dropped at the
+    first plane that shows it (the min, hence ``best``, is the same)."""
     origin, size, shape, starts, items = cells
     capacity = 1024
     rows, found, gaps, normals = (
@@ -261,8 +292,13 @@ def _feature_hits(
                                 + pose[1, axis] * feature_normals[feature, 1]
                                 + pose[2, axis] * feature_normals[feature, 2]
                             )
-                        gap, face = _piece_gap(planes[piece], edges[piece], sides[piece], local, facing, near, tie)
-                        if gap > near:  # the covers bound the farther ones
+                        target = targets[row]
+                        limit = min(near, max(keep, best[target] + PRUNE_SLACK_M))
+                        gap, face = _piece_gap(planes[piece], edges[piece], sides[piece], local, facing, limit, tie)
+                        if gap > limit:  # the covers bound the farther ones
+                            continue
+                        best[target] = min(best[target], max(gap, floor))
+                        if gap > keep:
                             continue
                         if hits == capacity:
                             capacity *= 2
@@ -297,8 +333,8 @@ def _grown(values, capacity):
 def _piece_gap(planes, edges, sides, local, facing, near, tie):
     """Signed distance of the link-frame point ``local`` (3,) to its convex piece (``planes``
     (F, 4), ``edges`` (E, 2, 3), ``sides`` (E, 2), padded) and the plane (row of ``planes``)
-    whose normal is the contact's; beyond ``near`` only a lower bound (the largest plane
-    distance).
+    whose normal is the contact's; beyond ``near`` only a lower bound (the distance off the
+    first plane found past it).
 
     Off a face (its foot on the face's plane inside the piece) that face's plane distance;
     off an edge or corner the nearest hull edge's distance, and of the faces at the nearest
@@ -309,6 +345,8 @@ def _piece_gap(planes, edges, sides, local, facing, near, tie):
     gap, face, count, above = -np.inf, 0, 0, 0
     while count < len(planes) and planes[count, 3] > -np.inf:
         signed = planes[count, 0] * x + planes[count, 1] * y + planes[count, 2] * z + planes[count, 3]
+        if signed > near:  # one plane past ``near`` is bound enough
+            return signed, count
         if signed > gap:
             gap, face = signed, count
         above += signed > 0
@@ -412,6 +450,8 @@ def collides(mesh, model, poses, *, overlap=None, along=None):
         exit_m = mesh.exit_distance(world[inside], along[owner]) - 1e-6
         _minimum_at(deepest, owner, -exit_m)
     unsure = unsure[~hit[rows[unsure]]]  # the vertex test only where no link point is inside
-    pair, _, signed, _ = _vertex_side(mesh.features, model, flat, slot, *_covers(mesh, model, flat, slot, unsure), 0.0)
-    hit[rows[pair[signed < -overlap]]] = True
+    deepest_feature = np.full(len(slot), np.inf)
+    covers = _covers(mesh, model, flat, slot, unsure)
+    _vertex_side(mesh.features, model, flat, slot, *covers, 0.0, deepest_feature, floor=-np.inf, keep=-np.inf)
+    hit[rows[deepest_feature < -overlap]] = True
     return hit, -deepest
