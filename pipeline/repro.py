@@ -17,6 +17,10 @@ overlap, and the objects do not share files until the report. So:
 4. the same lanes over the objects' other stages (``simulate``, ``decompose``, ``check``);
 5. ``dvc repro``: the report, and DVC's own check that nothing else is left to run.
 
+From step 3 on, the stage commands run in processes forked from a warm stage server
+(:mod:`pipeline.stage_server`, started beside steps 1-2) instead of each importing the libraries
+anew.
+
 Every run is the one ``dvc repro`` would make (the stages are deterministic and do not depend
 on what runs beside them), so the artefacts and dvc.lock files are the same; only the order
 differs. The lanes' output is printed line by line, each line after its object's name; the
@@ -25,13 +29,17 @@ its object's output.
 """
 
 import collections
+import contextlib
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 import threading
 
 from . import dag
 from .dag import ROOT, STAGES, object_stage_file, stage_file
+from .stage_server import ADDRESS
 
 DVC = [sys.executable, "-m", "dvc"]
 
@@ -96,6 +104,37 @@ def _run(command, prefix, lock, cores=None):
     return process.wait(), list(tail)
 
 
+def lane_cores(lanes):
+    """The CPU set of each of ``lanes`` lanes (a share of this process's each, or None for all
+    of them when there are more lanes than cores)."""
+    available = sorted(os.sched_getaffinity(0))
+    return [set(available[lane::lanes]) if lanes <= len(available) else None for lane in range(lanes)]
+
+
+@contextlib.contextmanager
+def warm_server(cpus=None):
+    """A :mod:`pipeline.stage_server` on the CPU set ``cpus``, started now; the context gives a
+    function that waits until it serves and returns its socket path (None if it failed to
+    start: the stages then run in their own processes). Stopped on exit."""
+    folder = tempfile.mkdtemp(prefix="medial-grasp-")
+    address = os.path.join(folder, "stages.sock")
+    command = [sys.executable, "-m", "pipeline.stage_server", address]
+    if cpus:
+        command += ["--cpus", ",".join(map(str, sorted(cpus)))]
+    server = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, text=True)
+
+    def ready():
+        return address if server.stdout.readline().strip() == "ready" else None
+
+    try:
+        yield ready
+    finally:
+        server.kill()
+        server.wait()
+        server.stdout.close()
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def run_lanes(objects, jobs, stages=STAGES):
     """Reproduce every object's ``stages``, ``jobs`` objects at a time; the names of the objects
     that failed, with their output's last lines (empty when all succeeded).
@@ -107,8 +146,7 @@ def run_lanes(objects, jobs, stages=STAGES):
     queue, failed, lock = list(objects), {}, threading.Lock()
     width = max(map(len, objects), default=0)
     lanes = max(1, min(jobs, len(objects)))
-    available = sorted(os.sched_getaffinity(0))
-    cores = [set(available[lane::lanes]) if lanes <= len(available) else None for lane in range(lanes)]
+    cores = lane_cores(lanes)
 
     def lane(number):
         while True:
@@ -151,28 +189,35 @@ def main(argv=None):
     except PipelineError as error:
         raise SystemExit(f"error: {error}") from None
     objects, jobs, lock = list(params.objects), default_workers(args.jobs), threading.Lock()
-    if _run(DVC + ["repro", "-s"] + [stage_file(entry.name) for entry in STAGES], "", lock)[0]:
-        raise SystemExit(1)
-    kernels = subprocess.Popen(
-        [
-            sys.executable,
-            "-c",
-            f"from pipeline.repro import compile_kernels; compile_kernels({list(params.candidates.hands)!r})",
-        ],
-        cwd=ROOT,
-    )
-    before, after = phases()
-    failed = run_lanes(objects, jobs, before)
-    if kernels.wait():
-        raise SystemExit("error: compiling the trial engine's kernels failed (see above)")
-    failed = failed or run_lanes(objects, jobs, after)
-    if failed:
-        for name, tail in failed.items():
-            print(f"\n{name} failed; its last lines:\n" + "\n".join(tail), file=sys.stderr)
-        raise SystemExit(
-            f"error: the stages of {', '.join(failed)} failed (see above); `dvc repro` reruns what is left"
+    with warm_server(lane_cores(max(1, min(jobs, len(objects))))[0]) as server_ready:
+        if _run(DVC + ["repro", "-s"] + [stage_file(entry.name) for entry in STAGES], "", lock)[0]:
+            raise SystemExit(1)
+        address = server_ready()
+        if address:  # the stage commands DVC starts from here on find it
+            os.environ[ADDRESS] = address
+        else:
+            print("the stage server did not start (see above): every stage runs in its own process", flush=True)
+        kernels = subprocess.Popen(
+            [
+                sys.executable,
+                "-c",
+                f"from pipeline.repro import compile_kernels; compile_kernels({list(params.candidates.hands)!r})",
+            ],
+            cwd=ROOT,
         )
-    raise SystemExit(_run(DVC + ["repro"], "", lock)[0])
+        before, after = phases()
+        failed = run_lanes(objects, jobs, before)
+        if kernels.wait():
+            raise SystemExit("error: compiling the trial engine's kernels failed (see above)")
+        failed = failed or run_lanes(objects, jobs, after)
+        if failed:
+            for name, tail in failed.items():
+                print(f"\n{name} failed; its last lines:\n" + "\n".join(tail), file=sys.stderr)
+            raise SystemExit(
+                f"error: the stages of {', '.join(failed)} failed (see above); `dvc repro` reruns what is left"
+            )
+        status = _run(DVC + ["repro"], "", lock)[0]
+    raise SystemExit(status)
 
 
 if __name__ == "__main__":
