@@ -14,7 +14,8 @@ overlap, and the objects do not share files until the report. So:
    while one more process compiles the trial engine's numba kernels into their cache
    (:func:`compile_kernels`): every trial process would otherwise compile them itself until one
    has written the cache (38 s of one core for the two default hands);
-4. the same lanes over the objects' other stages (``simulate``, ``decompose``, ``check``);
+4. the same lanes over the objects' other stages in two rounds (:func:`rounds`): ``simulate`` and
+   ``decompose``, then ``check``; a lane takes an object's checks once its first round is done;
 5. ``dvc repro``: the report, and DVC's own check that nothing else is left to run.
 
 From step 3 on, the stage commands run in processes forked from a warm stage server
@@ -24,7 +25,7 @@ anew.
 Every run is the one ``dvc repro`` would make (the stages are deterministic and do not depend
 on what runs beside them), so the artefacts and dvc.lock files are the same; only the order
 differs. The lanes' output is printed line by line, each line after its object's name; the
-first lane that fails stops the others from starting new objects, and the command fails with
+first lane that fails stops the others from starting new tasks, and the command fails with
 its object's output.
 """
 
@@ -135,30 +136,49 @@ def warm_server(cpus=None):
         shutil.rmtree(folder, ignore_errors=True)
 
 
-def run_lanes(objects, jobs, stages=STAGES):
-    """Reproduce every object's ``stages``, ``jobs`` objects at a time; the names of the objects
-    that failed, with their output's last lines (empty when all succeeded).
+def rounds(stages=STAGES):
+    """The lanes' rounds of stages: :func:`phases`' first part (run while the kernels compile),
+    then its second but for the last stage, then the last (``check``) alone, each round a task
+    per object. Two smaller tasks instead of one at the end leave one lane idle for less of the
+    time the other finishes its last object (about 40 s of a default run's 20 minutes)."""
+    before, after = phases(stages)
+    return tuple(part for part in (before, after[:-1], after[-1:]) if part)
 
-    With no more lanes than cores each lane keeps to its share of them (one each when there are
-    as many lanes): ``simulate`` (``workers: 0``, every core the process may use) then runs its
-    trials on that share, in its own process when it is one core, instead of starting worker
-    processes that would compete with the lanes beside it."""
-    queue, failed, lock = list(objects), {}, threading.Lock()
+
+def run_lanes(objects, jobs, rounds=(STAGES,)):
+    """Reproduce every object's stages, round by round (sequences of :class:`Stage`), ``jobs``
+    tasks at a time; the names of the objects that failed, with their output's last lines (empty
+    when all succeeded).
+
+    A task is one object's stages of one round; a lane takes the first in round order whose
+    object has no task running (so its earlier rounds are done). With no more lanes than cores
+    each lane keeps to its share of them (one each when there are as many lanes): ``simulate``
+    (``workers: 0``, every core the process may use) then runs its trials on that share, in its
+    own process when it is one core, instead of starting worker processes that would compete with
+    the lanes beside it."""
+    queue = [(name, stages) for stages in rounds if stages for name in objects]
+    running, failed, output, changed = set(), {}, threading.Lock(), threading.Condition()
     width = max(map(len, objects), default=0)
     lanes = max(1, min(jobs, len(objects)))
     cores = lane_cores(lanes)
 
     def lane(number):
         while True:
-            with lock:
+            with changed:
+                while not failed and queue and not (ready := [task for task in queue if task[0] not in running]):
+                    changed.wait()
                 if failed or not queue:
                     return
-                name = queue.pop(0)
+                name, stages = ready[0]
+                queue.remove(ready[0])
+                running.add(name)
             command = DVC + ["--wait-for-lock", "repro", "-s"] + lane_targets(name, stages)
-            status, tail = _run(command, f"[{name:<{width}}] ", lock, cores[number])
-            if status:
-                with lock:
+            status, tail = _run(command, f"[{name:<{width}}] ", output, cores[number])
+            with changed:
+                running.discard(name)
+                if status:
                     failed[name] = tail
+                changed.notify_all()
 
     threads = [threading.Thread(target=lane, args=(number,)) for number in range(lanes)]
     for thread in threads:
@@ -167,8 +187,9 @@ def run_lanes(objects, jobs, stages=STAGES):
         for thread in threads:
             thread.join()
     except KeyboardInterrupt:  # the lanes' dvc got it too: let them stop, start no more
-        with lock:
+        with changed:
             queue.clear()
+            changed.notify_all()
         raise
     return failed
 
@@ -205,11 +226,11 @@ def main(argv=None):
             ],
             cwd=ROOT,
         )
-        before, after = phases()
-        failed = run_lanes(objects, jobs, before)
+        first, *later = rounds()
+        failed = run_lanes(objects, jobs, (first,))
         if kernels.wait():
             raise SystemExit("error: compiling the trial engine's kernels failed (see above)")
-        failed = failed or run_lanes(objects, jobs, after)
+        failed = failed or run_lanes(objects, jobs, later)
         if failed:
             for name, tail in failed.items():
                 print(f"\n{name} failed; its last lines:\n" + "\n".join(tail), file=sys.stderr)

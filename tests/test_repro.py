@@ -14,12 +14,12 @@ def fake_dvc(tmp_path, monkeypatch):
     script.write_text(
         "import os, sys, time\n"
         "targets = sys.argv[4:]\n"
-        "name = targets[0].split('/')[2]\n"
+        "name, stage = targets[0].split('/')[2], targets[0].split('/')[1]\n"
         "start = time.monotonic()\n"
         "time.sleep(0.4)\n"
         "print('ran', ' '.join(targets))\n"
         "cores = ','.join(map(str, sorted(os.sched_getaffinity(0))))\n"
-        f"open({str(log)!r}, 'a').write(f'{{name}} {{start}} {{time.monotonic()}} {{cores}}\\n')\n"
+        f"open({str(log)!r}, 'a').write(f'{{name}} {{start}} {{time.monotonic()}} {{cores}} {{stage}}\\n')\n"
         "sys.exit(1 if name == 'broken' else 0)\n"
     )
     monkeypatch.setattr(repro, "DVC", [sys.executable, str(script)])
@@ -27,9 +27,17 @@ def fake_dvc(tmp_path, monkeypatch):
 
 
 def read_log(log):
-    """{object: (start, end, cores)} of the fake dvc's log."""
+    """{object: (start, end, cores)} of the fake dvc's log (its last command per object)."""
     rows = [line.split() for line in log.read_text().splitlines()]
-    return {name: (float(start), float(end), cores) for name, start, end, cores in rows}
+    return {name: (float(start), float(end), cores) for name, start, end, cores, _ in rows}
+
+
+def read_tasks(log):
+    """[(object, first stage, start, end)] of the fake dvc's log, in start order."""
+    rows = [line.split() for line in log.read_text().splitlines()]
+    return sorted(
+        ((name, stage, float(start), float(end)) for name, start, end, _, stage in rows), key=lambda row: row[2]
+    )
 
 
 def test_lanes_run_objects_at_once_each_in_dag_order(tmp_path, monkeypatch, capsys):
@@ -60,6 +68,26 @@ def test_first_failed_lane_stops_new_objects(tmp_path, monkeypatch):
     # the lane beside it finishes its object; nobody starts the remaining ones
     ran = set(read_log(log))
     assert "broken" in ran and "b" in ran and not {"d", "e"} & ran
+
+
+def test_an_objects_round_starts_after_its_previous_one_and_others_fill_the_lanes(tmp_path, monkeypatch):
+    log = fake_dvc(tmp_path, monkeypatch)
+    first, second = dag.STAGES[:2], dag.STAGES[2:]
+    assert repro.run_lanes(["a", "b", "c"], jobs=2, rounds=(first, second)) == {}
+    tasks = read_tasks(log)
+    assert [(name, stage) for name, stage, _, _ in tasks[:3]] == [("a", "sample"), ("b", "sample"), ("c", "sample")]
+    assert sorted((name, stage) for name, stage, _, _ in tasks[3:]) == [("a", "mat"), ("b", "mat"), ("c", "mat")]
+    spans = {(name, stage): (start, end) for name, stage, start, end in tasks}
+    for name in "abc":  # each object's second round only after its first
+        assert spans[name, "sample"][1] <= spans[name, "mat"][0]
+    # while c's first round runs, the other lane runs a's second: no lane waits for the round
+    assert spans["a", "mat"][0] < spans["c", "sample"][1]
+
+
+def test_the_checks_are_a_round_of_their_own():
+    first, *later = repro.rounds()
+    assert (first, sum(later, ())) == repro.phases()
+    assert [[entry.name for entry in part] for part in later] == [["simulate", "decompose"], ["check"]]
 
 
 def test_stages_that_run_trials_wait_for_the_compiled_kernels():
