@@ -457,11 +457,12 @@ def run_stage_bench(*, data="data", object_name="duck", scale="1.0", hand="barre
             "simulate": [run / "surface.npz", run / hand / "candidates.parquet", hand]
             + [folder / "trials.parquet", folder / "contacts.parquet", "--rrd", folder / "grasps.rrd"]
             + ["--recording-id", f"{object_name}-{scale}"],
-            "decompose": [run / "surface.npz", folder / "parts.npz"],
+            "decompose": [run / "surface.npz", scale, folder / "parts.npz"],
             "check": [
                 run / "surface.npz",
                 folder / "trials.parquet",
                 folder / "parts.npz",
+                scale,
                 hand,
                 folder / "checks.parquet",
             ],

@@ -9,7 +9,8 @@ objects of ``params.yaml``; ``python -m pipeline.dag --check`` only lists the fi
 
 The files: ``dag/<stage>/dvc.yaml`` holds the stage's ``code`` stage, whose output
 ``dag/<stage>/code.json`` (the md5 of each source file) is the runs' one code dep, and
-``dag/<stage>/<object>/dvc.yaml`` the object's runs (a matrix over scales, and hands). DVC
+``dag/<stage>/<object>/dvc.yaml`` the object's runs (a matrix over scales, and hands; one run
+of the first scale for a stage that is not :attr:`Stage.per_scale`). DVC
 rewrites a file's whole dvc.lock after every stage it runs (a ruamel round trip: 1.7 s for the
 56 entries of one file per stage), so each lock holds only one object's two to four entries.
 """
@@ -40,14 +41,18 @@ ARTEFACTS = {
     "checks": "checks.parquet",
 }
 PER_HAND = ("candidates", "trials", "contacts", "checks")
+#: artefacts of the object, not of a run (in ``data/<object>/``): what an object has at every scale
+PER_OBJECT = ("parts",)
 
 
 @dataclass(frozen=True)
 class Stage:
     """One DAG stage: ``python -m stages.<name> INPUTS... ARGS... OUTPUTS...``, run per object and
-    scale (and hand when ``per_hand``); ``args`` are matrix items (``object``, ``scale``,
-    ``hand``); ``params`` the params.yaml keys DVC tracks; ``recording`` the .rrd it writes and
-    ``recorded`` the artefacts it reads only to draw it (after the inputs on the command line).
+    scale (and hand when ``per_hand``; once per object, on the first of ``scales``, when not
+    ``per_scale``: its outputs, of :data:`PER_OBJECT`, serve every scale); ``args`` are matrix
+    items (``object``, ``scale``, ``hand``); ``params`` the params.yaml keys DVC tracks;
+    ``recording`` the .rrd it writes and ``recorded`` the artefacts it reads only to draw it
+    (after the inputs on the command line).
 
     ``function`` (``module:name``) computes the outputs from the inputs, in order, and the
     keywords of the params ``section`` (every key of it; empty: the caller passes the ones it
@@ -62,6 +67,7 @@ class Stage:
     section: str = ""
     args: tuple = ()
     per_hand: bool = False
+    per_scale: bool = True
     recording: str = ""
     recorded: tuple = ()
 
@@ -142,6 +148,8 @@ STAGES = (
         ("parts",),
         ("checks.vhacd_resolution", "checks.physics"),
         "pipeline.checks.physics:decompose",
+        args=("scale",),
+        per_scale=False,
     ),
     Stage(
         "check",
@@ -150,7 +158,7 @@ STAGES = (
         ("seed", "simulate", "checks"),
         "pipeline.checks.protocol:check_trials",
         "checks",
-        args=("hand",),
+        args=("scale", "hand"),
         per_hand=True,
     ),
 )
@@ -266,12 +274,16 @@ def write_fingerprint(name, path):
     atomic_write(path, lambda stream: stream.write(text.encode()))
 
 
-def _path(artefact, name):
-    run = f"data/{name}/${{item.scale}}"
+def _path(artefact, name, scale="${item.scale}"):
+    if artefact in PER_OBJECT:
+        return f"data/{name}/{ARTEFACTS[artefact]}"
+    run = f"data/{name}/{scale}"
     return f"{run}/${{item.hand}}/{ARTEFACTS[artefact]}" if artefact in PER_HAND else f"{run}/{ARTEFACTS[artefact]}"
 
 
 def _run_folder(entry, root, name):
+    if not entry.per_scale:
+        return f"{root}/{name}"
     return f"{root}/{name}/${{item.scale}}" + ("/${item.hand}" if entry.per_hand else "")
 
 
@@ -310,24 +322,28 @@ def object_dvc_file(name, object_name):
     """The text of ``dag/<name>/<object_name>/dvc.yaml``: stage ``name``'s runs of one object."""
     entry = stage(name)
     lines = _header(f"Stage `{name}` of object `{object_name}`")
-    lines += ["vars:", "  - ../../../params.yaml", "stages:", f"  {name}:", "    matrix:", "      scale: ${scales}"]
-    if entry.per_hand:
-        lines.append("      hand: ${candidates.hands}")
+    lines += ["vars:", "  - ../../../params.yaml", "stages:", f"  {name}:"]
+    if entry.per_scale:
+        lines += ["    matrix:", "      scale: ${scales}"] + (
+            ["      hand: ${candidates.hands}"] if entry.per_hand else []
+        )
+    scale = "${item.scale}" if entry.per_scale else "${scales[0]}"
     logs, data = _run_folder(entry, "logs", object_name), _run_folder(entry, "data", object_name)
-    item = {"object": object_name, "scale": "${item.scale}", "hand": "${item.hand}"}
+    item = {"object": object_name, "scale": scale, "hand": "${item.hand}"}
+    inputs = [_path(artefact, object_name, scale) for artefact in entry.inputs + entry.recorded]
+    outs = [_path(artefact, object_name, scale) for artefact in entry.outputs]
     argv = (
-        [_path(artefact, object_name) for artefact in entry.inputs + entry.recorded]
+        inputs
         + [item[arg] for arg in entry.args]
-        + [_path(artefact, object_name) for artefact in entry.outputs]
+        + outs
         + [f"--timing {data}/timing/{name}.json", f"--log {logs}/{name}.mcap"]
     )
-    outs = [_path(artefact, object_name) for artefact in entry.outputs]
     outs += [f"{data}/timing/{name}.json", f"{logs}/{name}.mcap"]
     if entry.recording:
-        argv.append(f"--rrd {logs}/{entry.recording} --recording-id {object_name}-${{item.scale}}")
+        argv.append(f"--rrd {logs}/{entry.recording} --recording-id {object_name}-{scale}")
         outs.append(f"{logs}/{entry.recording}")
     lines += ["    wdir: ../../..", "    cmd: >-", f"      python -m stages.{name}"] + [f"      {arg}" for arg in argv]
-    deps = [fingerprint_path(name)] + [_path(artefact, object_name) for artefact in entry.inputs + entry.recorded]
+    deps = [fingerprint_path(name)] + inputs
     lines += ["    deps:"] + [f"      - {path}" for path in deps]
     params = [key.replace("${item.object}", object_name) for key in entry.params]
     lines += ["    params:"] + [f"      - {key}" for key in params]

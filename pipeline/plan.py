@@ -99,7 +99,7 @@ def run_chain(
             settings=params.simulate,
             progress=trial_progress,
         ),
-        "decompose": dict(vhacd_resolution=params.checks.vhacd_resolution),
+        "decompose": dict(vhacd_resolution=params.checks.vhacd_resolution, scale=scale),
         "check": dict(
             hands=hand_specs,
             seed=seed,

@@ -1,8 +1,9 @@
-"""Stage ``check``: python -m stages.check SURFACE.npz TRIALS.parquet PARTS.npz HAND CHECKS.parquet
+"""Stage ``check``: python -m stages.check SURFACE.npz TRIALS.parquet PARTS.npz SCALE HAND CHECKS.parquet
 [--timing T.json] [--log L.mcap]
 
 A seeded sample of the hand's trials per planner: the lift-and-shake checks (pybullet, MuJoCo
 from the closed pose and from the open hand) and robust force closure (params ``checks``; see pipeline/checks/protocol.py).
+The object's convex parts (stage ``decompose``, at one scale) are scaled to SCALE, the surface's.
 """
 
 import dataclasses
@@ -14,7 +15,7 @@ from pipeline.stage_io import one_line_errors, params, progress_bar, stage_args,
 def main(argv=None):
     from pipeline.pool import default_workers
 
-    args = stage_args(__doc__, "surface", "trials", "parts", "hand", "checks", argv=argv)
+    args = stage_args(__doc__, "surface", "trials", "parts", "scale", "hand", "checks", argv=argv)
     config = params()
     from pipeline.artefacts import SurfaceSamples, read_table, write_table
     from pipeline.checks.physics import ConvexParts
@@ -27,7 +28,7 @@ def main(argv=None):
         surface, trials, parts = (
             SurfaceSamples.load(args.surface),
             read_table(args.trials),
-            ConvexParts.load(args.parts),
+            ConvexParts.load(args.parts).at_scale(float(args.scale)),
         )
         with progress_bar(f"check {args.checks}", unit="check") as progress:
             checks = check_trials(

@@ -180,11 +180,13 @@ def tiny_project(tmp_path):
 
 
 def run_name(address):
-    """``simulate@box-1.0-armar3`` of ``dag/simulate/box/dvc.yaml:simulate@1.0-armar3`` (``code``,
-    ``report`` of the stages' own files)."""
+    """``simulate@box-1.0-armar3`` of ``dag/simulate/box/dvc.yaml:simulate@1.0-armar3``,
+    ``decompose@box`` of an object's one run (``code``, ``report`` of the stages' own files)."""
     path, name = address.split(":")
     parts = path.split("/")
-    return f"{parts[1]}@{parts[2]}-{name.split('@')[1]}" if len(parts) == 4 else name
+    if len(parts) != 4:
+        return name
+    return f"{parts[1]}@{parts[2]}" + (f"-{name.split('@')[1]}" if "@" in name else "")
 
 
 def ran_stages(result):
@@ -203,7 +205,9 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     assert first.returncode == 0, first.stderr + first.stdout
     runs, per_scale = TINY_RUNS, len(TINY_OBJECTS) * len(TINY_SCALES)
     # (the code stages' fingerprints came with the copy: the code has not changed)
-    assert len(ran_stages(first) - {"code"}) == per_scale * 7 + len(runs) * 3 + 1
+    # decompose runs once per object (its parts serve both scales)
+    assert len(ran_stages(first) - {"code"}) == per_scale * 6 + len(TINY_OBJECTS) + len(runs) * 3 + 1
+    assert {f"decompose@{name}" for name in TINY_OBJECTS} <= ran_stages(first)
 
     # the report: a row per object x scale x hand, every trial, metrics, plots, figures
     out = tmp_path / "report"
@@ -306,9 +310,9 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
     refresh_fingerprints()
     items = {
         entry.name: [
-            f"{name}-{scale}" + (f"-{hand}" if entry.per_hand else "")
+            f"{name}-{scale}" + (f"-{hand}" if entry.per_hand else "") if entry.per_scale else name
             for name in TINY_OBJECTS
-            for scale in TINY_SCALES
+            for scale in (TINY_SCALES if entry.per_scale else TINY_SCALES[:1])
             for hand in (TINY_HANDS if entry.per_hand else ("",))
         ]
         for entry in dag.STAGES
@@ -386,7 +390,7 @@ def test_dvc_repro_report_on_a_tiny_config_caches_sweeps_and_restores(tmp_path):
         + per_scale * 6
         + len(runs) * 3
         + 1
-        + per_scale * 3  # decompose: parts, timing, log
+        + len(TINY_OBJECTS) * 3  # decompose: parts, timing, log
         + per_scale * 4  # concavity: concavities, timing, log, recording
         + len(runs) * 3  # check: checks, timing, log
         + 2  # the calibration plots
@@ -500,6 +504,8 @@ def test_plan_batch_and_dvc_make_the_same_artefacts(tmp_path):
         for artefact in stage.outputs:
             name = dag.ARTEFACTS[artefact]
             dvc_path = run_folder / "barrett" / name if artefact in dag.PER_HAND else run_folder / name
+            if artefact in dag.PER_OBJECT:  # the object's parts, of its first scale (1.0 here)
+                dvc_path = run_folder.parent / name
             assert (tmp_path / "plan" / name).read_bytes() == dvc_path.read_bytes(), name
     trials = pd.read_parquet(tmp_path / "plan" / "trials.parquet")
     assert len(trials) > 3 and (trials.planner == "baseline").sum() == 3

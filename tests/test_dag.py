@@ -176,6 +176,12 @@ def test_each_object_has_its_own_stage_files_written_from_params(tmp_path):
         "data/ring/${item.scale}/surface.npz",
         "data/ring/${item.scale}/${item.hand}/candidates.parquet",
     ]
+    # the convex parts: once per object, from the first scale's surface; each scale's check scales them
+    decompose = yaml.safe_load((tmp_path / "dag/decompose/ring/dvc.yaml").read_text())["stages"]["decompose"]
+    assert "matrix" not in decompose and decompose["deps"][1:] == ["data/ring/${scales[0]}/surface.npz"]
+    assert decompose["outs"][0] == "data/ring/parts.npz" and " ${scales[0]} data/ring/parts.npz " in decompose["cmd"]
+    check = yaml.safe_load((tmp_path / "dag/check/ring/dvc.yaml").read_text())["stages"]["check"]
+    assert "data/ring/parts.npz" in check["deps"] and " data/ring/parts.npz ${item.scale} ${item.hand} " in check["cmd"]
     sample = yaml.safe_load((tmp_path / "dag/sample/cube/dvc.yaml").read_text())["stages"]["sample"]
     assert (
         sample["params"] == ["seed", "sample", "objects.cube"] and "stages.sample cube ${item.scale}" in sample["cmd"]

@@ -105,3 +105,27 @@ def test_a_plate_resting_on_the_fingertips_holds_against_gravity_but_not_a_sidew
         check.close()
     assert lifted.outcome == "held" and lifted.slip_m < 0.005
     assert shaken.outcome in ("dropped", "slipped") and shaken.slip_m > 0.05
+
+
+def test_the_parts_of_the_half_size_object_are_its_full_size_parts_halved(tmp_path):
+    """Stage ``decompose`` runs V-HACD once per object, and each scale's check scales its parts:
+    V-HACD voxelises the mesh's own box, so the table (legs under a top: six parts) at half
+    size decomposes into its full-size parts, halved (to V-HACD's rounding of 0.5 um)."""
+    from pipeline.checks.physics import ConvexParts, decompose
+    from pipeline.geometry.sampling import sample_object
+    from pipeline.params import SampleParams
+
+    def table(scale):
+        options = {**dataclasses.asdict(SampleParams()), "count": 2000}
+        return sample_object("primitive:table", scale=scale, rng=np.random.default_rng(0), **options)
+
+    full = decompose(table(1.0), vhacd_resolution=100_000)
+    half = decompose(table(0.5), vhacd_resolution=100_000, scale=0.5)
+    assert full.scale == 1.0 and len(full.parts) == len(half.parts) == 6
+    halved = full.at_scale(0.5)
+    assert halved.scale == 0.5 and np.array_equal(halved.part_start, half.part_start)
+    np.testing.assert_allclose(halved.vertices, half.vertices, rtol=0, atol=1e-6)
+    assert full.at_scale(1.0) is full and halved.key != full.key
+    halved.save(tmp_path / "parts.npz")
+    loaded = ConvexParts.load(tmp_path / "parts.npz")
+    assert (loaded.scale, loaded.key) == (0.5, halved.key) and np.array_equal(loaded.vertices, halved.vertices)

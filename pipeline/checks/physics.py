@@ -141,11 +141,13 @@ def convex_parts(vertices, faces, *, client, resolution=1000000):
 class ConvexParts(_Artefact):
     """An object's convex decomposition (``parts.npz``, stage ``decompose``): ``vertices``
     (v, 3) float64 m, the parts' vertices one part after another, part k in rows
-    ``part_start[k]:part_start[k + 1]`` ((p + 1,) int64); ``mass_kg`` is not stored (it depends
-    on the density)."""
+    ``part_start[k]:part_start[k + 1]`` ((p + 1,) int64), of the object at ``scale`` (the
+    factor of its size it was decomposed at: :meth:`at_scale` gives the parts at another);
+    ``mass_kg`` is not stored (it depends on the density)."""
 
     vertices: np.ndarray
     part_start: np.ndarray
+    scale: float
     key: str
 
     KIND = "convex_parts"
@@ -156,13 +158,24 @@ class ConvexParts(_Artefact):
         """The parts as a list of (v_k, 3) arrays."""
         return [self.vertices[a:b] for a, b in zip(self.part_start[:-1], self.part_start[1:])]
 
+    def at_scale(self, scale):
+        """The parts of the object at ``scale``: the vertices times ``scale / self.scale``; these
+        parts themselves at their own scale. The sampled mesh at a scale is the object's mesh
+        times it, and V-HACD voxelises the mesh's own box, so the parts it finds at another
+        scale are these scaled (to 0.5 um on the duck and the mug, x0.5 against x1.0)."""
+        if scale == self.scale:
+            return self
+        key = content_key("at_scale", {"scale": scale}, self.key)
+        return ConvexParts(self.vertices * (scale / self.scale), self.part_start, scale=scale, key=key)
 
-def decompose(surface, *, vhacd_resolution=1000000, physics=True):
-    """The :class:`ConvexParts` of ``surface``'s mesh (a SurfaceSamples with faces), by V-HACD
-    with ``vhacd_resolution`` voxels; none without the ``physics`` checks, which alone use them."""
+
+def decompose(surface, *, vhacd_resolution=1000000, physics=True, scale=1.0):
+    """The :class:`ConvexParts` of ``surface``'s mesh (a SurfaceSamples with faces, of the object
+    at ``scale``), by V-HACD with ``vhacd_resolution`` voxels; none without the ``physics``
+    checks, which alone use them."""
     if not physics:
         key = content_key("decompose", {"vhacd_resolution": vhacd_resolution, "physics": False}, surface.key)
-        return ConvexParts(np.empty((0, 3)), np.zeros(1, np.int64), key=key)
+        return ConvexParts(np.empty((0, 3)), np.zeros(1, np.int64), scale=scale, key=key)
     client = BulletClient()
     try:
         parts = convex_parts(surface.vertices, surface.faces, client=client.client, resolution=vhacd_resolution)
@@ -174,6 +187,7 @@ def decompose(surface, *, vhacd_resolution=1000000, physics=True):
     return ConvexParts(
         np.concatenate(parts) if parts else np.empty((0, 3)),
         np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+        scale=scale,
         key=content_key("decompose", {"vhacd_resolution": vhacd_resolution}, surface.key),
     )
 

@@ -51,8 +51,8 @@ def add(commands, prog):
         "--from-data",
         metavar="DIR",
         default=None,
-        help="reuse a DVC run folder (e.g. data/duck/1.0: surface.npz, <hand>/candidates.parquet) "
-        "instead of running the chain",
+        help="reuse a DVC run folder (e.g. data/duck/1.0: surface.npz, <hand>/candidates.parquet; "
+        "the object's data/duck/parts.npz, scaled to the folder's scale) instead of running the chain",
     )
     parser.add_argument("--scale", type=float, default=1.0, help="factor on the coordinates (default: 1)")
     add_hands(parser)
@@ -126,10 +126,15 @@ def _inputs(args, params, seed, hands):
             [read_table(folder / get_hand(hand).name / "candidates.parquet") for hand in hands], ignore_index=True
         )
         parts = None
-        if (folder / "parts.npz").is_file():  # the decompose stage's convex parts
+        if (folder.parent / "parts.npz").is_file():  # the decompose stage's convex parts, of the object
             from ..checks.physics import ConvexParts
+            from ..errors import BadInputError
 
-            parts = ConvexParts.load(folder / "parts.npz").parts
+            try:
+                scale = float(folder.name)
+            except ValueError:
+                raise BadInputError(f"{folder}: not a run folder data/<object>/<scale>") from None
+            parts = ConvexParts.load(folder.parent / "parts.npz").at_scale(scale).parts
         return str(folder), surface, candidates, parts
     from ..plan import run_chain
 

@@ -169,7 +169,8 @@ class Features:
     them (area-weighted at vertices, the two faces' mean along edges) and are the axes of their
     normal cones, ``half_angles`` (m,) rad and ``edges`` (m, 3) (0 at vertices) the rest
     (:func:`clamp_to_cone`); ``cells``: the points
-    binned in cubic cells (origin, cell size, shape, CSR starts, point indices, :func:`_cells`),
+    binned in cubic cells (origin, cell size, shape, CSR starts, point indices, the points in
+    that order: :func:`_cells`),
     for the link pieces' ball queries (:func:`pipeline.trial.proximity._feature_hits`)."""
 
     points: np.ndarray
@@ -188,10 +189,11 @@ FEATURE_CELLS = 64  # the most bins along an axis: a 1 m object gets 1.6 cm bins
 
 
 def _cells(points, size):
-    """(origin (3,), size, shape (3,), starts (c + 1,), indices (n,)): the (n, 3) ``points``
-    binned in cubic cells of ``size`` m (larger if :data:`FEATURE_CELLS` cells along an axis do
-    not span them), as compressed rows: cell ``c = (i * shape[1] + j) * shape[2] + k`` holds
-    ``indices[starts[c]:starts[c + 1]]``, in increasing order."""
+    """(origin (3,), size, shape (3,), starts (c + 1,), indices (n,), binned (n, 3)): the (n, 3)
+    ``points`` binned in cubic cells of ``size`` m (larger if :data:`FEATURE_CELLS` cells along an
+    axis do not span them), as compressed rows: cell ``c = (i * shape[1] + j) * shape[2] + k``
+    holds ``indices[starts[c]:starts[c + 1]]``, in increasing order, and ``binned`` is
+    ``points[indices]``, so that a cell's points are read in one run of memory."""
     origin = points.min(axis=0) if len(points) else np.zeros(3)
     upper = points.max(axis=0) if len(points) else np.zeros(3)
     size = max(size, float((upper - origin).max()) / (FEATURE_CELLS - 1))
@@ -200,7 +202,7 @@ def _cells(points, size):
     cell = (index[:, 0] * shape[1] + index[:, 1]) * shape[2] + index[:, 2]
     order = np.argsort(cell, kind="stable")
     starts = np.searchsorted(cell[order], np.arange(int(np.prod(shape)) + 1))
-    return origin, float(size), shape, starts.astype(np.int64), order.astype(np.int64)
+    return origin, float(size), shape, starts.astype(np.int64), order.astype(np.int64), points[order]
 
 
 @njit(cache=True)

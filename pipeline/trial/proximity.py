@@ -82,7 +82,7 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
         keep = -np.inf if tolerance is None else tolerance
         # the mesh-to-link side first: its cheap, exact gaps let the link points below skip the
         # exact queries (the costly part) of every point that cannot lower its link's distance
-        feature_pair, vertex, _, normal = _vertex_side(
+        feature_pair, vertex, normal = _vertex_side(
             features, model, flat, slot, pair, cover, centres, clearance, near, distance, floor=0.0, keep=keep
         )
         # link points: those of cover spheres within reach; the others are farther than
@@ -175,9 +175,9 @@ def _vertex_side(features, model, flat, slot, pair, cover, centres, clearance, n
     distance, negative inside), and to the lower bound of each cover sphere too far for any
     feature to be within ``near`` (which keeps a link's distance a bound when its nearest part
     is a face away from its edges). Returns the features at most ``keep`` from their piece:
-    their pair (k,), feature (k,), distance (k,) m and contact normal (k, 3) pointing out of
-    the link (:func:`_piece_gap`)."""
-    empty = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 3)))
+    their pair (k,), feature (k,) and contact normal (k, 3) pointing out of the link
+    (:func:`_piece_gap`)."""
+    empty = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
     reach = model.cover_radius[cover] + near
     needed = clearance <= reach  # a cover sphere farther than its reach holds no vertex
     # a far cover is at least its clearance less its radius away; past a near one's reach,
@@ -186,7 +186,7 @@ def _vertex_side(features, model, flat, slot, pair, cover, centres, clearance, n
     if not needed.any():
         return empty
     pair, cover = pair[needed], cover[needed]
-    rows, vertex, gap, face_normal = _feature_hits(
+    rows, vertex, face_normal = _feature_hits(
         flat,
         slot[pair],
         centres[needed],
@@ -206,7 +206,7 @@ def _vertex_side(features, model, flat, slot, pair, cover, centres, clearance, n
         tol.edge_tie_m,
     )
     normal = np.einsum("mij,mj->mi", flat[slot[pair[rows]], :3, :3], face_normal)
-    return pair[rows], vertex, gap, normal
+    return pair[rows], vertex, normal
 
 
 #: a feature whose plane distance to a piece is this far past its pair's best is skipped: its
@@ -237,18 +237,13 @@ def _feature_hits(
     """The features near the cover spheres' pieces (``centres`` (c, 3) world, ``reach`` (c,) m,
     ``pieces`` (c,), carried by the link poses ``poses[slots]``). Lowers ``best[targets[row]]``
     to ``max(distance, floor)`` of each feature within ``near`` of a row's piece, and returns
-    those at most ``keep`` from it: per hit the cover's row, the feature, the piece distance and
-    the normal (link frame) of :func:`_piece_gap`. A feature in several covers of one piece in a
+    those at most ``keep`` from it: per hit the cover's row, the feature and the normal (link
+    frame) of :func:`_piece_gap`. A feature in several covers of one piece in a
     row counts once. A feature that cannot lower ``best`` and is past ``keep`` is dropped at the
     first plane that shows it (the min, hence ``best``, is the same)."""
-    origin, size, shape, starts, items = cells
+    origin, size, shape, starts, items, binned = cells
     capacity = 1024
-    rows, found, gaps, normals = (
-        np.empty(capacity, np.int64),
-        np.empty(capacity, np.int64),
-        np.empty(capacity),
-        np.empty((capacity, 3)),
-    )
+    rows, found, normals = np.empty(capacity, np.int64), np.empty(capacity, np.int64), np.empty((capacity, 3))
     seen = np.full(len(features), -1, np.int64)
     hits, group, previous = 0, -1, (-1, -1)
     local, facing = np.empty(3), np.empty(3)
@@ -273,18 +268,20 @@ def _feature_hits(
                         continue
                     cell = (i * shape[1] + j) * shape[2] + k
                     for position in range(starts[cell], starts[cell + 1]):
+                        # the reach test first, on the cell's own run of coordinates: most
+                        # features fail it, and it reads memory in order
+                        dx = binned[position, 0] - centres[row, 0]
+                        dy = binned[position, 1] - centres[row, 1]
+                        dz = binned[position, 2] - centres[row, 2]
+                        if dx * dx + dy * dy + dz * dz > reach[row] * reach[row]:
+                            continue
                         feature = items[position]
                         if seen[feature] == group:
                             continue
-                        dx = features[feature, 0] - centres[row, 0]
-                        dy = features[feature, 1] - centres[row, 1]
-                        dz = features[feature, 2] - centres[row, 2]
-                        if dx * dx + dy * dy + dz * dz > reach[row] * reach[row]:
-                            continue
                         seen[feature] = group
-                        mx = features[feature, 0] - pose[0, 3]
-                        my = features[feature, 1] - pose[1, 3]
-                        mz = features[feature, 2] - pose[2, 3]
+                        mx = binned[position, 0] - pose[0, 3]
+                        my = binned[position, 1] - pose[1, 3]
+                        mz = binned[position, 2] - pose[2, 3]
                         for axis in range(3):
                             local[axis] = pose[0, axis] * mx + pose[1, axis] * my + pose[2, axis] * mz
                             facing[axis] = -(
@@ -302,17 +299,16 @@ def _feature_hits(
                             continue
                         if hits == capacity:
                             capacity *= 2
-                            rows, found, gaps, normals = (
+                            rows, found, normals = (
                                 _grown(rows, capacity),
                                 _grown(found, capacity),
-                                _grown(gaps, capacity),
                                 _grown(normals, capacity),
                             )
-                        rows[hits], found[hits], gaps[hits] = row, feature, gap
+                        rows[hits], found[hits] = row, feature
                         for axis in range(3):
                             normals[hits, axis] = planes[piece, face, axis]
                         hits += 1
-    return rows[:hits], found[:hits], gaps[:hits], normals[:hits]
+    return rows[:hits], found[:hits], normals[:hits]
 
 
 @njit(cache=True)
