@@ -1,8 +1,8 @@
 """The trial worker processes' start: a fork server that imports the trial engine once.
 
-Spawned workers would each import numpy, open3d and numba before their first trial (about 3 s a
-process here, every ``simulate`` stage). Workers forked from a server that has only imported
-them start at once; the server itself is a fresh single-threaded process that has run nothing,
+Spawned workers would each import numpy, open3d and numba and load the engine's numba kernels
+before their first trial (about 3 s a process here, every ``simulate`` stage). Workers forked
+from a server that has only imported them (:mod:`pipeline.kernel_cache`) start at once; the server itself is a fresh single-threaded process that has run nothing,
 so no thread of a used library (open3d's ray casting, OpenMP) is copied mid-flight, as forking
 the caller could. :func:`start` launches it early, so that its imports overlap the caller's.
 """
@@ -10,8 +10,9 @@ the caller could. :func:`start` launches it early, so that its imports overlap t
 import multiprocessing
 import os
 
-#: what the server imports before forking workers (the engine's lazy imports included)
-PRELOAD = ["pipeline.trial.engine", "open3d", "trimesh"]
+#: what the server imports before forking workers (the engine's lazy imports included; its numba
+#: kernels loaded from their cache)
+PRELOAD = ["pipeline.trial.engine", "open3d", "trimesh", "pipeline.kernel_cache"]
 
 
 def default_workers(workers):

@@ -14,7 +14,15 @@ from pipeline.hands.kinematics import base_poses
 from pipeline.hands.spec import HANDS, export_hand, get_hand, load_hand
 from pipeline.params import SampleParams
 from pipeline.trial.engine import OUTCOMES, GraspEngine
-from pipeline.trial.protocol import baseline_candidates, run_trials, select_candidates, simulate, trial_rates
+from pipeline.trial.protocol import (
+    CHUNK,
+    baseline_candidates,
+    chunks,
+    run_trials,
+    select_candidates,
+    simulate,
+    trial_rates,
+)
 
 
 @functools.lru_cache(maxsize=None)
@@ -249,12 +257,49 @@ def test_simulate_tables_summary_and_worker_independence():
     pd.testing.assert_frame_equal(contacts, again_contacts)
 
 
+def test_chunks_cover_every_row_once_each_a_sample_of_its_table_with_workers():
+    lengths = [1300, 0, 70]
+    for workers in (1, 2, 3):
+        found = list(chunks(lengths, workers))
+        rows = sorted((table, int(row)) for table, chunk in found for row in chunk)
+        assert rows == [(table, row) for table, length in enumerate(lengths) for row in range(length)]
+        assert max(len(chunk) for _, chunk in found) <= CHUNK
+        if workers == 1:  # one process: the engine's full chunks of consecutive rows
+            assert [len(chunk) for _, chunk in found] == [512, 512, 276, 70]
+            assert all((np.diff(chunk) == 1).all() for _, chunk in found)
+        else:  # a multiple of the workers per table, each every count-th row of it
+            per_table = [sum(table == number for table, _ in found) for number in range(3)]
+            assert per_table[0] == workers * -(-1300 // (workers * CHUNK)) and per_table[2] == workers
+            assert all(len(set(np.diff(chunk))) <= 1 for _, chunk in found)
+
+
 def test_run_trials_keeps_table_order_across_workers():
-    table = baseline_candidates(cube(), HANDS["parallel_jaw"], 70, np.random.default_rng(2))
-    serial = run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=1)
-    parallel = run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=2)
-    assert [r.outcome for r in serial[0]] == [r.outcome for r in parallel[0]]
-    assert [r.epsilon for r in serial[0]] == [r.epsilon for r in parallel[0]]
+    # 70 + 40 rows in two chunks each with two processes: this one and a worker share them
+    tables = [
+        (0, baseline_candidates(cube(), HANDS["parallel_jaw"], 70, np.random.default_rng(2))),
+        (1, baseline_candidates(cube(), HANDS["barrett"], 40, np.random.default_rng(3))),
+    ]
+    hands = [HANDS["parallel_jaw"], HANDS["barrett"]]
+    assert len(list(chunks([70, 40], 2))) > 2
+    serial = run_trials(cube(), hands, tables, None, workers=1)
+    parallel = run_trials(cube(), hands, tables, None, workers=2)
+    for one, other in zip(serial, parallel):
+        assert [r.outcome for r in one] == [r.outcome for r in other]
+        assert [r.epsilon for r in one] == [r.epsilon for r in other]
+        assert [r.joint_positions for r in one] == [r.joint_positions for r in other]
+
+
+def test_kernel_cache_loads_the_engines_kernels_in_a_new_process():
+    import subprocess
+    import sys
+
+    GraspEngine(cube(), HANDS["parallel_jaw"]).trial([0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0])  # cached
+    code = (
+        "import pipeline.kernel_cache as cache, pipeline.trial.proximity as proximity; "
+        "print(cache.LOADED, len(proximity._feature_hits.overloads))"
+    )
+    loaded, feature_kernels = map(int, subprocess.check_output([sys.executable, "-c", code], text=True).split())
+    assert loaded >= 10 and feature_kernels >= 1  # before any call
 
 
 def _imported_before_any_work():

@@ -29,7 +29,9 @@ contacts (``contacts.parquet``): one row per contact; ``trial`` (row number in t
 ``nx, ny, nz`` (the object's outward unit normal).
 """
 
+import collections
 import concurrent.futures
+import threading
 
 import numpy as np
 import pandas as pd
@@ -87,6 +89,22 @@ def baseline_candidates(surface, hand, count, rng):
     )
 
 
+def chunks(lengths, workers=1):
+    """The chunks of tables of ``lengths`` rows: (table number, its rows) each, :data:`CHUNK` rows
+    at most. One process: consecutive rows. Several ``workers``: each table in a multiple of
+    ``workers`` chunks, row ``k`` in chunk ``k mod count``, so that every chunk is as large as
+    the batch allows (the engine's per-pass cost is shared by its rows) and a sample of the
+    whole table (the processes end together whatever the order of the rows' costs)."""
+    for number, length in enumerate(lengths):
+        if workers <= 1:
+            for first in range(0, length, CHUNK):
+                yield number, np.arange(first, min(first + CHUNK, length))
+            continue
+        count = workers * -(-length // (workers * CHUNK))
+        for chunk in range(min(count, length)):
+            yield number, np.arange(chunk, length, count)
+
+
 def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
     """One trial per row of each table (candidate columns).
 
@@ -99,7 +117,9 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
     settings : SimulateParams or None
         How the trials run (:class:`pipeline.trial.engine.GraspEngine`'s ``settings``).
     workers : int
-        Processes; 1 runs in this process. Results do not depend on it.
+        Processes, this one included: it runs chunks itself while ``workers - 1`` worker
+        processes (:mod:`pipeline.pool`) start and take theirs, each the next chunk left.
+        Results do not depend on it.
     progress : callable(int, int), optional
         Called with the number of trials just finished and the total.
 
@@ -107,35 +127,72 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
     -------
     list (per table) of lists of TrialResult, in table order
     """
-    chunks = []  # (table number, hand number, targets)
-    for number, (hand_number, table) in enumerate(tables):
-        targets = list(
-            zip(vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), table.preshape)
+    targets = [
+        list(zip(vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), table.preshape))
+        for _, table in tables
+    ]
+    parts = list(chunks([len(rows) for rows in targets], workers))
+    done, total, lock = [None] * len(parts), sum(map(len, targets)), threading.Lock()
+    left = collections.deque(range(len(parts)))
+
+    def take():
+        with lock:
+            return left.popleft() if left else None
+
+    def finish(number, results):
+        with lock:
+            done[number] = results
+            if progress:
+                progress(len(results), total)
+
+    def chunk_of(number):
+        table, rows = parts[number]
+        return tables[table][0], [targets[table][row] for row in rows]
+
+    feeders, failed = [], []
+    helpers = min(workers, len(parts)) - 1
+    executor = (
+        concurrent.futures.ProcessPoolExecutor(
+            helpers, pool.context(), initializer=start_worker, initargs=(surface, hands, settings)
         )
-        chunks += [(number, hand_number, targets[start : start + CHUNK]) for start in range(0, len(targets), CHUNK)]
-    results = [[] for _ in tables]
-    total = sum(len(table) for _, table in tables)
-    if workers <= 1 or len(chunks) <= 1:
+        if helpers > 0
+        else None
+    )
+
+    def feed():  # keeps one worker process busy, chunk after chunk
+        try:
+            while (number := take()) is not None:
+                finish(number, executor.submit(run_chunk, *chunk_of(number)).result())
+        except BaseException as error:  # noqa: BLE001 (raised again in the caller's thread)
+            failed.append(error)
+            with lock:
+                left.clear()
+
+    try:
+        for _ in range(helpers):  # their processes start in these threads while this one works
+            feeders.append(threading.Thread(target=feed, daemon=True))
+            feeders[-1].start()
         start_worker(surface, hands, settings)
         try:
-            for number, hand_number, targets in chunks:
-                results[number] += run_chunk(hand_number, targets)
-                if progress:
-                    progress(len(targets), total)
+            while (number := take()) is not None:
+                finish(number, run_chunk(*chunk_of(number)))
+        except BaseException:
+            with lock:
+                left.clear()
+            raise
         finally:
             stop_worker()
-        return results
-    with concurrent.futures.ProcessPoolExecutor(
-        min(workers, len(chunks)),
-        pool.context(),
-        initializer=start_worker,
-        initargs=(surface, hands, settings),
-    ) as executor:
-        done = executor.map(run_chunk, [chunk[1] for chunk in chunks], [chunk[2] for chunk in chunks])
-        for (number, _, _), chunk in zip(chunks, done):
-            results[number] += chunk
-            if progress:
-                progress(len(chunk), total)
+            for feeder in feeders:
+                feeder.join()
+    finally:
+        if executor:
+            executor.shutdown(cancel_futures=True)
+    if failed:
+        raise failed[0]
+    results = [[None] * len(rows) for rows in targets]
+    for (table, rows), found in zip(parts, done):
+        for row, result in zip(rows, found):
+            results[table][row] = result
     return results
 
 
