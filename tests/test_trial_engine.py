@@ -9,7 +9,7 @@ import yaml
 
 from pipeline.artefacts import SurfaceSamples
 from pipeline.errors import BadInputError, BadParamsError
-from pipeline.hands.kinematics import hand_model, link_poses
+from pipeline.hands.kinematics import hand_model, link_poses, nearest_centre
 from pipeline.hands.spec import HANDS, export_hand, get_hand
 from pipeline.trial.engine import GraspEngine, check_simulable
 from test_simulation import cube, surface
@@ -293,6 +293,24 @@ def test_every_link_point_lies_in_the_cover_sphere_that_culls_it(name, refine):
     assert np.array_equal(model.piece_link[model.cover_piece[model.point_cover]], model.point_link)
     assert np.all(model.cover_reach <= model.cover_radius * (1 + 1e-9))
     assert np.all(np.diff(model.point_cover) >= 0)  # grouped by sphere, so a sphere's points are a range
+
+
+@pytest.mark.parametrize("name", sorted(HANDS))
+def test_each_link_point_joins_its_nearest_cover_sphere_the_first_of_ties(name):
+    """The cover spheres' points are assigned as the argmin of the full distance table would,
+    ties to the first sphere: on a grid of centres with points midway between them, and on every
+    piece of the hand's finer model."""
+    centres = np.stack(np.meshgrid(*[np.arange(5) * 0.01] * 3, indexing="ij"), -1).reshape(-1, 3)
+    points = np.concatenate([centres[:50] + 0.005, centres[:20], np.random.default_rng(0).uniform(0, 0.04, (300, 3))])
+    table = np.linalg.norm(points[:, None] - centres[None], axis=2)
+    assert np.array_equal(nearest_centre(points, centres), table.argmin(axis=1))
+    model = hand_model(HANDS[name], spacing=0.003, refine=3)
+    piece = model.cover_piece[model.point_cover]
+    for number in np.unique(piece):
+        own = np.flatnonzero(model.cover_piece == number)
+        rows = piece == number
+        table = np.linalg.norm(model.points[rows, None] - model.cover_centre[own][None], axis=2)
+        assert np.array_equal(model.point_cover[rows], own[table.argmin(axis=1)])
 
 
 @pytest.mark.parametrize("name", sorted(HANDS))

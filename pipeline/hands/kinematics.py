@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
-from scipy.spatial import ConvexHull
+from scipy.spatial import ConvexHull, cKDTree
 from scipy.spatial.transform import Rotation
 
 from ..errors import BadParamsError
@@ -249,6 +249,23 @@ def _shape_points_and_hull(shape, spacing, refine=1):
     return local @ rotation.T + translation, hull @ rotation.T + translation
 
 
+def nearest_centre(points, centres):
+    """(n,) index of the nearest of (c, 3) ``centres`` to each of (n, 3) ``points``, the first in
+    ``centres`` order among equally near ones: ``argmin`` of the (n, c) distance table, bit for
+    bit, without the table (a hand with mesh links has thousands of points and covers)."""
+    tree = cKDTree(centres)
+    nearest, _ = tree.query(points)
+    # the tree's distances may differ from numpy's in the last bits: every centre within a hair
+    # of the nearest is measured again as the table would, and the first of the least wins
+    found = tree.query_ball_point(points, nearest * (1 + 1e-9) + 1e-12)
+    owner = np.repeat(np.arange(len(points)), [len(near) for near in found])
+    candidate = np.concatenate(found).astype(np.int64) if len(owner) else np.zeros(0, np.int64)
+    gaps = np.linalg.norm(points[owner] - centres[candidate], axis=1)
+    order = np.lexsort((candidate, gaps, owner))
+    first = np.searchsorted(owner[order], np.arange(len(points)))
+    return candidate[order][first]
+
+
 def _cover(hull, planes):
     """Spheres (centres (c, 3), radii (c,)) covering the convex piece with vertices ``hull`` and
     ``planes``: near-cubic cells of at most :attr:`pipeline.tol.Tolerances.cover_cell_m` over its
@@ -418,9 +435,9 @@ def _build(frozen, spacing, refine):
     point_cover = np.zeros(len(points), int)
     piece_start = np.searchsorted(cover_piece, np.arange(len(pieces) + 1))
     for piece, rows in enumerate(np.split(np.arange(len(points)), np.cumsum(piece_points)[:-1])):
-        own = cover_centre[piece_start[piece] : piece_start[piece + 1]]
-        gaps = np.linalg.norm(points[rows, None] - own[None], axis=2)
-        point_cover[rows] = piece_start[piece] + gaps.argmin(axis=1)
+        point_cover[rows] = piece_start[piece] + nearest_centre(
+            points[rows], cover_centre[piece_start[piece] : piece_start[piece + 1]]
+        )
     order = np.argsort(point_cover, kind="stable")
     points, point_link, point_cover = points[order], point_link[order], point_cover[order]
     cover_reach = np.zeros(len(cover_centre))
