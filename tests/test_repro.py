@@ -4,6 +4,8 @@ in DAG order, and the first failure stops new objects (DVC itself replaced by a 
 import os
 import sys
 
+import pytest
+
 from pipeline import dag, repro
 
 
@@ -81,6 +83,42 @@ def test_an_objects_round_starts_after_its_previous_one_and_others_fill_the_lane
         assert spans[name, "sample"][1] <= spans[name, "mat"][0]
     # while c's first round runs, the other lane runs a's second: no lane waits for the round
     assert spans["a", "mat"][0] < spans["c", "sample"][1]
+
+
+def test_the_last_round_takes_the_costliest_object_first_once_its_earlier_rounds_ran(tmp_path, monkeypatch):
+    log = fake_dvc(tmp_path, monkeypatch)
+    first, second = dag.STAGES[:2], dag.STAGES[2:]
+    asked = []
+
+    def cost(name):  # asked only once an object's first round is done, and once per object
+        asked.append(name)
+        assert any(row[:2] == (name, "sample") for row in read_tasks(log))
+        return {"a": 1.0, "b": 3.0, "c": 2.0, "d": 3.0}[name]
+
+    assert repro.run_lanes(["a", "b", "c", "d"], jobs=1, rounds=(first, second), cost=cost) == {}
+    order = [(name, stage) for name, stage, _, _ in read_tasks(log)]
+    assert order == [(name, "sample") for name in "abcd"] + [(name, "mat") for name in "bdca"]  # ties: queue order
+    assert sorted(asked) == ["a", "b", "c", "d"]
+
+
+def test_check_work_estimates_the_noisy_copies_and_physics_of_each_run(tmp_path):
+    import json
+
+    import pandas as pd
+
+    from pipeline.params import Params
+
+    params = Params()
+    run = tmp_path / "duck" / str(float(params.scales[0])) / params.candidates.hands[0]
+    (run / "timing").mkdir(parents=True)
+    outcomes = ["force_closure"] * 10 + ["no_contact"] * 30 + ["no_force_closure"] * 4
+    pd.DataFrame({"planner": ["mat"] * 40 + ["baseline"] * 4, "outcome": outcomes}).to_parquet(run / "trials.parquet")
+    (run / "timing" / "simulate.json").write_text(json.dumps({"process_seconds": 8.8}))  # 0.2 s a trial
+    # mat: 25 of 40 checked, a quarter of them closed; baseline: all 4, all closed
+    copies = (25 + 4) * params.checks.robust_samples * 0.2
+    expected = copies + (25 * 10 / 40 + 4) * repro.PHYSICS_CHECK_S
+    assert repro.check_work("duck", params, data=tmp_path) == pytest.approx(expected)
+    assert repro.check_work("absent", params, data=tmp_path) == 0.0
 
 
 def test_the_checks_are_a_round_of_their_own():
