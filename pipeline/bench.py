@@ -65,7 +65,7 @@ def run_bench(
     *, sizes=(20000, 100000, 200000), repeats=3, json_path=None, trials=512, reference_trials=60, only=None, out=print
 ):
     """Print (and optionally save) the benchmark tables (``only``: one of medial, symmetry,
-    trials, checks, stages, evaluate, recording, batch); returns {table: rows}."""
+    trials, checks, stages, evaluate, recording, batch, run); returns {table: rows}."""
     tables = {}
     if only in (None, "medial"):
         tables["medial"] = run_medial_bench(sizes=sizes, repeats=repeats, out=out)
@@ -90,6 +90,9 @@ def run_bench(
         out("")
     if only in (None, "batch"):
         tables["batch"] = run_batch_bench(out=out)
+        out("")
+    if only in (None, "run"):
+        tables["run"] = run_occupancy_bench(out=out)
     if json_path:
         text = json.dumps({"repeats": repeats, **tables}, indent=2).encode()
         atomic_write(json_path, lambda stream: stream.write(text))
@@ -514,6 +517,55 @@ def run_stage_bench(*, data="data", object_name="duck", scale="1.0", hand="barre
         "the parts they happen in (other: the rest, top-level imports included)"
     )
     return rows
+
+
+def occupancy(spans):
+    """{stages running: seconds} over the time from the first of ``spans`` ((start, end) pairs,
+    s) to the last end."""
+    events = sorted([(start, 1) for start, _ in spans] + [(end, -1) for _, end in spans])
+    found, level, last = Counter(), 0, events[0][0] if events else 0.0
+    for moment, change in events:
+        found[level] += moment - last
+        level, last = level + change, moment
+    return {running: seconds for running, seconds in sorted(found.items()) if seconds > 0}
+
+
+def run_occupancy_bench(*, logs="logs", out=print):
+    """How the last ``dvc repro`` (``make run``) kept the cores busy, from the stage logs under
+    ``logs``: each stage from its ``/stage`` start message to its end (its process start and
+    imports before them count as not running). Prints the stages, the time from the first start
+    to the last end, the stages' own seconds, and the seconds with 0, 1, 2, ... stages running:
+    fewer than the lanes is DVC's work between stages, process starts, the kernels' compilation
+    and a lane waiting at the end; returns the row."""
+    from pathlib import Path
+
+    from mcap.reader import make_reader
+
+    from .errors import BadInputError
+
+    spans = []
+    for path in sorted(Path(logs).rglob("*.mcap")):
+        with open(path, "rb") as stream:
+            times = [message.log_time / 1e9 for _, _, message in make_reader(stream).iter_messages(topics=["/stage"])]
+        if len(times) == 2:
+            spans.append((min(times), max(times)))
+    if not spans:
+        raise BadInputError(f"{logs}: no stage logs; `make run` (or dvc repro) writes them")
+    levels = occupancy(spans)
+    first, last = min(start for start, _ in spans), max(end for _, end in spans)
+    row = dict(
+        stages=len(spans),
+        span_s=last - first,
+        stage_s=sum(end - start for start, end in spans),
+        running_s=levels,
+    )
+    out(
+        f"the stage logs under {logs}: {row['stages']} stages over {row['span_s']:.0f} s, {row['stage_s']:.0f} s of stage work"
+    )
+    out("stages running  seconds")
+    for running, seconds in levels.items():
+        out(f"{running:14d}  {seconds:7.0f}")
+    return row
 
 
 def run_evaluate_bench(*, grasps=64, out=print):

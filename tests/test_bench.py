@@ -4,6 +4,8 @@ import cProfile
 import pstats
 import time
 
+import pytest
+
 from pipeline.bench import STAGE_PARTS, _profile_parts
 
 
@@ -47,3 +49,25 @@ def test_every_stage_part_names_a_function_of_this_tree():
                     continue
                 text = (root / suffix).read_text()
                 assert f"def {function}(" in text, f"{stage} part {name!r}: {suffix} has no {function}"
+
+
+def test_occupancy_counts_the_seconds_at_each_number_of_running_stages():
+    from pipeline.bench import occupancy
+
+    # two lanes: a 0-10 s stage beside a 5-15 s one, then a gap, then one more stage
+    assert occupancy([(0.0, 10.0), (5.0, 15.0), (17.0, 18.0)]) == {0: 2.0, 1: 11.0, 2: 5.0}
+    assert occupancy([(3.0, 4.0)]) == {1: 1.0} and occupancy([]) == {}
+
+
+def test_the_run_table_reads_each_stage_from_its_logs_start_and_end(tmp_path):
+    from pipeline.bench import run_occupancy_bench
+    from pipeline.logbook import mcap_log
+
+    for name in ("sample", "mat"):  # one after the other: never two at once, a gap between
+        with mcap_log(tmp_path / "duck" / f"{name}.mcap", name):
+            time.sleep(0.05)
+        time.sleep(0.05)
+    row = run_occupancy_bench(logs=tmp_path, out=lambda line: None)
+    assert row["stages"] == 2 and set(row["running_s"]) == {0, 1}
+    assert row["running_s"][1] == pytest.approx(row["stage_s"]) and row["stage_s"] >= 0.1
+    assert row["span_s"] == pytest.approx(row["stage_s"] + row["running_s"][0]) and row["running_s"][0] >= 0.05

@@ -11,7 +11,8 @@ def add(commands, prog):
         "grasp trials and the cost of recording them",
         description="Time medial_axis + mat (against voronoi_poles), classify + candidates, the grasp trials\n"
         "(one core and all cores), the checks, where a default simulate, decompose and check stage's time\n"
-        "goes (on data/duck/1.0), the cost of recording and a small batch; prints one table each.",
+        "goes (on data/duck/1.0), the cost of recording, a small batch and how the last make run kept the\n"
+        "cores busy (its stage logs); prints one table each.",
         examples=[f"{prog} bench --only medial --sizes 20000 --repeats 1", f"{prog} bench --json bench.json"],
     )
     parser.add_argument("--json", default=None, help="also write the figures to this JSON file")
@@ -34,7 +35,7 @@ def add(commands, prog):
     )
     parser.add_argument(
         "--only",
-        choices=("medial", "symmetry", "trials", "checks", "stages", "evaluate", "recording", "batch"),
+        choices=("medial", "symmetry", "trials", "checks", "stages", "evaluate", "recording", "batch", "run"),
         default=None,
         help="run one table (default: all)",
     )
