@@ -3,8 +3,9 @@
 numba loads a cached kernel on its first call, about 0.35 s for the engine's 25 in every new
 process. The trial workers' fork server imports this module (:data:`pipeline.pool.PRELOAD`), so
 the workers it forks start with them loaded. Only overloads cached for this very code and
-machine are loaded (numba's own index key); a kernel with none is left to compile on first
-use, as always. Importing it elsewhere only moves that cost to the import.
+machine are loaded (numba's own index key); a kernel with none, or whose cache this numba
+cannot read, is left to compile or load on first use, as always, so the fork server never fails
+on it. Importing it elsewhere only moves that cost to the import.
 """
 
 import importlib
@@ -30,11 +31,14 @@ def load_cached(modules=MODULES):
             index = getattr(cache, "_cache_file", None)
             if index is None:  # not cached (no ``cache=True``)
                 continue
-            codegen = kernel.targetctx.codegen()
-            for key in index._load_index():
-                if cache._index_key(key[0], codegen) == key and key[0] not in kernel.overloads:
-                    kernel.compile(key[0])
-                    loaded += 1
+            try:
+                codegen = kernel.targetctx.codegen()
+                for key in index._load_index():
+                    if cache._index_key(key[0], codegen) == key and key[0] not in kernel.overloads:
+                        kernel.compile(key[0])
+                        loaded += 1
+            except Exception:  # noqa: BLE001 (numba's internals: a kernel left to load on its first call, as without)
+                continue
     return loaded
 
 
