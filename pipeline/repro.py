@@ -192,17 +192,17 @@ def run_lanes(objects, jobs, rounds=(STAGES,), cost=None):
     A task is one object's stages of one round; a lane takes the first in round order whose
     object has no task running (so its earlier rounds are done); in the last of several
     rounds, of those the one of the highest ``cost(object)`` (estimated once, when first
-    ready). With no more lanes than cores
-    each lane keeps to its share of them (one each when there are as many lanes): ``simulate``
-    (``workers: 0``, every core the process may use) then runs its trials on that share, in its
-    own process when it is one core, instead of starting worker processes that would compete with
-    the lanes beside it."""
+    ready). With no more lanes than cores each lane keeps to its share of them (one each when
+    there are as many lanes): ``simulate`` (``workers: 0``, every core the process may use)
+    then runs its trials on that share, in its own process when it is one core, instead of
+    starting worker processes that would compete with the lanes beside it."""
     queue = [(number, name, stages) for number, stages in enumerate(rounds) if stages for name in objects]
     last, estimates = len(rounds) - 1 if cost and len(rounds) > 1 else None, {}
 
     def pick(ready):  # the first task of the earliest round; in the last, the costliest
-        earliest = [task for task in ready if task[0] == min(number for number, _, _ in ready)]
-        if earliest[0][0] != last:
+        first = min(number for number, _, _ in ready)
+        earliest = [task for task in ready if task[0] == first]
+        if first != last:
             return earliest[0]
         for _, name, _ in earliest:  # its object's earlier rounds are done: their files are there
             if name not in estimates:
