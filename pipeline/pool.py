@@ -2,9 +2,10 @@
 
 Spawned workers would each import numpy, open3d and numba and load the engine's numba kernels
 before their first trial (about 3 s a process here, every ``simulate`` stage). Workers forked
-from a server that has only imported them (:mod:`pipeline.kernel_cache`) start at once; the server itself is a fresh single-threaded process that has run nothing,
-so no thread of a used library (open3d's ray casting, OpenMP) is copied mid-flight, as forking
-the caller could. :func:`start` launches it early, so that its imports overlap the caller's.
+from a server that has only imported them (:mod:`pipeline.kernel_cache`) start at once; the
+server itself is a fresh single-threaded process that has run nothing, so no thread of a used
+library (open3d's ray casting, OpenMP) is copied mid-flight, as forking the caller could.
+:func:`start` launches it early, so that its imports overlap the caller's.
 """
 
 import multiprocessing

@@ -13,7 +13,7 @@ from pipeline.geometry.sampling import sample_object
 from pipeline.hands.kinematics import base_poses
 from pipeline.hands.spec import HANDS, export_hand, get_hand, load_hand
 from pipeline.params import SampleParams
-from pipeline.trial.engine import OUTCOMES, GraspEngine
+from pipeline.trial.engine import OUTCOMES, GraspEngine, object_mesh
 from pipeline.trial.protocol import (
     CHUNK,
     baseline_candidates,
@@ -369,3 +369,18 @@ def test_an_object_without_candidates_gives_empty_tables(tmp_path):
     assert trial_rates(trials)["trials"] == 0 and np.isnan(trial_rates(trials)["force_closure_rate"])
     write_table(tmp_path / "trials.parquet", trials)
     assert len(read_table(tmp_path / "trials.parquet")) == 0
+
+
+def test_run_trials_builds_the_objects_grid_once_for_every_hand_and_worker(monkeypatch):
+    from pipeline.trial import protocol
+
+    built = []
+    monkeypatch.setattr(protocol, "object_mesh", lambda *args: built.append(1) or object_mesh(*args))
+    tables = [
+        (0, baseline_candidates(cube(), HANDS["parallel_jaw"], 30, np.random.default_rng(2))),
+        (1, baseline_candidates(cube(), HANDS["barrett"], 30, np.random.default_rng(3))),
+    ]
+    results = run_trials(cube(), [HANDS["parallel_jaw"], HANDS["barrett"]], tables, None, workers=2)
+    assert len(built) == 1 and [len(rows) for rows in results] == [30, 30]
+    assert run_trials(cube(), [HANDS["barrett"]], [(0, tables[1][1].iloc[:0])], None) == [[]]
+    assert len(built) == 1  # no rows: no grid

@@ -162,7 +162,8 @@ class ConvexParts(_Artefact):
         """The parts of the object at ``scale``: the vertices times ``scale / self.scale``; these
         parts themselves at their own scale. The sampled mesh at a scale is the object's mesh
         times it, and V-HACD voxelises the mesh's own box, so the parts it finds at another
-        scale are these scaled (to 0.5 um on the duck and the mug, x0.5 against x1.0)."""
+        scale are mostly these scaled (x0.5 against x1.0: to 0.5 um on 13 of the 14 default
+        objects; on the octopus 12 of its 21 parts differ)."""
         if scale == self.scale:
             return self
         key = content_key("at_scale", {"scale": scale}, self.key)

@@ -12,6 +12,7 @@ returns these bounds from the nearest node, and a point whose bounds do not stra
 threshold needs no exact query.
 """
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -273,15 +274,15 @@ class ObjectMesh:
         import open3d
 
         self._o3d = open3d
+        #: threads of open3d's queries: the CPUs this process may use (open3d's pool is sized once,
+        #: at its first use); one where each process of a pool has a core of its own
+        self.threads = len(os.sched_getaffinity(0))
         self.vertices = np.asarray(vertices, np.float64)
         self.faces = np.asarray(faces, np.int64)
         corners = self.vertices[self.faces]
         normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
         self.face_normals = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
-        self.scene = open3d.t.geometry.RaycastingScene()
-        self.scene.add_triangles(
-            open3d.core.Tensor(self.vertices.astype(np.float32)), open3d.core.Tensor(self.faces.astype(np.uint32))
-        )
+        self.scene = self._scene()
         # vertex normals (area weighted) orient contacts found at mesh vertices; with the
         # faces' neighbours they give every edge's and corner's normal cone
         self.cones = NormalCones.of(self.vertices, self.faces, self.face_normals)
@@ -297,6 +298,24 @@ class ObjectMesh:
         axes = [self.origin[k] + self.voxel * np.arange(shape[k]) for k in range(3)]
         nodes = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
         self.grid = self.signed_distance(nodes).reshape(shape)
+
+    def _scene(self):
+        scene = self._o3d.t.geometry.RaycastingScene()
+        scene.add_triangles(
+            self._o3d.core.Tensor(self.vertices.astype(np.float32)), self._o3d.core.Tensor(self.faces.astype(np.uint32))
+        )
+        return scene
+
+    def __getstate__(self):
+        # open3d's scene does not pickle; it is rebuilt from the mesh (milliseconds), while the
+        # grid, the costly part (its exact distances), travels as it is
+        return {name: value for name, value in vars(self).items() if name not in ("_o3d", "scene")}
+
+    def __setstate__(self, state):
+        import open3d
+
+        vars(self).update(state, _o3d=open3d)
+        self.scene = self._scene()
 
     def _features(self, spacing):
         along, along_normals, along_half, along_edges = edge_points(
@@ -320,7 +339,7 @@ class ObjectMesh:
         points = np.asarray(points, np.float64).reshape(-1, 3)
         if not len(points):
             return Closest(np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0))
-        answer = self.scene.compute_closest_points(self._tensor(points))
+        answer = self.scene.compute_closest_points(self._tensor(points), nthreads=self.threads)
         triangles = answer["primitive_ids"].numpy().astype(np.int64)
         # open3d answers in float32: project again in float64 onto the triangle's plane
         on_mesh = answer["points"].numpy().astype(np.float64)
@@ -348,14 +367,14 @@ class ObjectMesh:
         points = np.asarray(points, np.float64).reshape(-1, 3)
         if not len(points):
             return np.zeros(0)
-        return self.scene.compute_distance(self._tensor(points)).numpy().astype(np.float64)
+        return self.scene.compute_distance(self._tensor(points), nthreads=self.threads).numpy().astype(np.float64)
 
     def inside(self, points):
         """(n,) bool: inside the closed mesh (exact, by ray parity)."""
         points = np.asarray(points, np.float64).reshape(-1, 3)
         if not len(points):
             return np.zeros(0, bool)
-        return self.scene.compute_occupancy(self._tensor(points)).numpy() > 0.5
+        return self.scene.compute_occupancy(self._tensor(points), nthreads=self.threads).numpy() > 0.5
 
     def exit_distance(self, points, directions):
         """(n,) distance (m) from each of the (n, 3) points inside the mesh along its (n, 3) unit
@@ -365,7 +384,7 @@ class ObjectMesh:
         if not len(points):
             return np.zeros(0)
         rays = np.concatenate([points, np.asarray(directions, np.float64).reshape(-1, 3)], axis=1)
-        hit = self.scene.cast_rays(self._tensor(rays))["t_hit"].numpy().astype(np.float64)
+        hit = self.scene.cast_rays(self._tensor(rays), nthreads=self.threads)["t_hit"].numpy().astype(np.float64)
         return np.where(np.isfinite(hit), hit, 0.0)
 
     def signed_distance(self, points):
@@ -373,7 +392,9 @@ class ObjectMesh:
         points = np.asarray(points, np.float64).reshape(-1, 3)
         if not len(points):
             return np.zeros(0)
-        return self.scene.compute_signed_distance(self._tensor(points)).numpy().astype(np.float64)
+        return (
+            self.scene.compute_signed_distance(self._tensor(points), nthreads=self.threads).numpy().astype(np.float64)
+        )
 
     def bounds(self, points):
         """(n,) lower and (n,) upper bounds (m) on the signed distance of (n, 3) points, from the

@@ -97,6 +97,18 @@ def trial_settings(settings=None, **overrides):
     return dataclasses.replace(SimulateParams() if settings is None else settings, **overrides)
 
 
+def object_mesh(surface, settings):
+    """The :class:`ObjectMesh` of ``surface`` that trials with ``settings`` (SimulateParams) query:
+    its distance grid and the feature points at their spacings."""
+    return ObjectMesh(
+        surface.vertices,
+        surface.faces,
+        grid_cells=settings.grid_cells,
+        edge_spacing=settings.link_point_spacing_m,
+        contact_edge_spacing=settings.contact_point_spacing_m,
+    )
+
+
 RETREAT_SLICE = 128  # hands whose retreat is searched together
 
 
@@ -126,11 +138,14 @@ class GraspEngine:
     hand : Hand
     settings : SimulateParams, optional
         How trials are run (the ``simulate`` params; their defaults when None).
+    mesh : ObjectMesh, optional
+        The object as :func:`object_mesh` builds it from ``surface`` and these settings, to share
+        one between engines (built here when None).
     **overrides
         Fields of ``settings`` to replace (``approach_to_contact=False``).
     """
 
-    def __init__(self, surface, hand, settings=None, **overrides):
+    def __init__(self, surface, hand, settings=None, *, mesh=None, **overrides):
         self.settings = trial_settings(settings, **overrides)
         self.hand = hand
         spacing = self.settings.link_point_spacing_m
@@ -138,13 +153,7 @@ class GraspEngine:
         # the closed hands' contacts from finer points on the same edges (and the same links)
         refine = int(np.ceil(spacing / self.settings.contact_point_spacing_m - 1e-9))
         self.contact_model = hand_model(hand, spacing=spacing, refine=refine)
-        self.mesh = ObjectMesh(
-            surface.vertices,
-            surface.faces,
-            grid_cells=self.settings.grid_cells,
-            edge_spacing=spacing,
-            contact_edge_spacing=self.settings.contact_point_spacing_m,
-        )
+        self.mesh = object_mesh(surface, self.settings) if mesh is None else mesh
         self.centre, self.torque_scale = torque_reference(self.mesh.vertices, self.mesh.faces)
         self.near = max(self.settings.near_m, self.settings.contact_tolerance_m)
         #: metres the hand may come on past its placement (-1: the hand's largest graspable diameter)
@@ -529,25 +538,23 @@ def grade(regions, model, settings, *, centre, torque_scale, **pose):
     )
 
 
-# A worker process's engines, one per hand, built on first use (pipeline.trial.protocol runs the pool,
-# pipeline.pool forks its workers from a server that has imported this module).
+# A worker process's engines, one per hand, built once by the caller of the pool and sent to each
+# worker (pipeline.trial.protocol runs the pool, pipeline.pool forks its workers from a server that
+# has imported this module).
 _WORKER = {}
 
 
-def start_worker(surface, hands, settings):
-    """Set up this process to run trials on ``surface`` with ``hands`` (SimulateParams ``settings``)."""
-    _WORKER.update(surface=surface, hands=hands, settings=settings, engines={})
+def start_worker(engines):
+    """Set up this process to run trials with ``engines`` ({hand number: GraspEngine})."""
+    _WORKER.update(engines=engines)
 
 
 def run_chunk(hand_number, targets):
     """Trials of ``targets`` ((P_g, P_d, P_o, preshape) tuples) with hand ``hand_number``."""
-    engines = _WORKER["engines"]
-    if hand_number not in engines:
-        engines[hand_number] = GraspEngine(_WORKER["surface"], _WORKER["hands"][hand_number], _WORKER["settings"])
     if not targets:
         return []
     grasp, approach, orient, preshapes = zip(*targets)
-    return engines[hand_number].run(np.array(grasp), np.array(approach), np.array(orient), list(preshapes))
+    return _WORKER["engines"][hand_number].run(np.array(grasp), np.array(approach), np.array(orient), list(preshapes))
 
 
 def stop_worker():

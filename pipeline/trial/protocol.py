@@ -38,7 +38,16 @@ import pandas as pd
 
 from .. import pool, seeds
 from ..arrays import vectors
-from .engine import OUTCOMES, check_simulable, run_chunk, start_worker, stop_worker
+from .engine import (
+    OUTCOMES,
+    GraspEngine,
+    check_simulable,
+    object_mesh,
+    run_chunk,
+    start_worker,
+    stop_worker,
+    trial_settings,
+)
 
 #: the trials' ``planner`` values: the MAT candidates, the surface-normal baseline and the
 #: candidates encompassing a concavity
@@ -117,9 +126,10 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
     settings : SimulateParams or None
         How the trials run (:class:`pipeline.trial.engine.GraspEngine`'s ``settings``).
     workers : int
-        Processes, this one included: it runs chunks itself while ``workers - 1`` worker
-        processes (:mod:`pipeline.pool`) start and take theirs, each the next chunk left.
-        Results do not depend on it.
+        Processes, this one included: it builds the engines (one object mesh for every hand),
+        then runs chunks itself while ``workers - 1`` worker processes (:mod:`pipeline.pool`)
+        start with a copy of them and take theirs, each the next chunk left. Results do not
+        depend on it.
     progress : callable(int, int), optional
         Called with the number of trials just finished and the total.
 
@@ -149,30 +159,42 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
         table, rows = parts[number]
         return tables[table][0], [targets[table][row] for row in rows]
 
+    # the object's distance grid is most of an engine's set-up: built once, here, and copied
+    settings = trial_settings(settings)
+    used = sorted({number for (number, _), rows in zip(tables, targets) if rows})
+    mesh = object_mesh(surface, settings) if used else None
+    engines = {number: GraspEngine(surface, hands[number], settings, mesh=mesh) for number in used}
     feeders, failed = [], []
     helpers = min(workers, len(parts)) - 1
+    if helpers > 0:  # a core per process: open3d's threads would only contend for them
+        mesh.threads = 1
     executor = (
-        concurrent.futures.ProcessPoolExecutor(
-            helpers, pool.context(), initializer=start_worker, initargs=(surface, hands, settings)
-        )
+        concurrent.futures.ProcessPoolExecutor(helpers, pool.context(), initializer=start_worker, initargs=(engines,))
         if helpers > 0
         else None
     )
 
-    def feed():  # keeps one worker process busy, chunk after chunk
+    def feed(number, future):  # keeps one worker process busy, chunk after chunk
         try:
-            while (number := take()) is not None:
-                finish(number, executor.submit(run_chunk, *chunk_of(number)).result())
+            while True:
+                finish(number, future.result())
+                if (number := take()) is None:
+                    return
+                future = executor.submit(run_chunk, *chunk_of(number))
         except BaseException as error:  # noqa: BLE001 (raised again in the caller's thread)
             failed.append(error)
             with lock:
                 left.clear()
 
     try:
-        for _ in range(helpers):  # their processes start in these threads while this one works
-            feeders.append(threading.Thread(target=feed, daemon=True))
+        for _ in range(helpers):
+            # each worker's process starts from this thread before it works: started from another
+            # thread while this one computes, each step of the start would wait for the interpreter
+            # lock (about 0.5 s in all, the first chunk's time here)
+            number = take()
+            feeders.append(threading.Thread(target=feed, args=(number, executor.submit(run_chunk, *chunk_of(number)))))
             feeders[-1].start()
-        start_worker(surface, hands, settings)
+        start_worker(engines)
         try:
             while (number := take()) is not None:
                 finish(number, run_chunk(*chunk_of(number)))
