@@ -274,7 +274,7 @@ def test_chunks_cover_every_row_once_each_a_sample_of_its_table_with_workers():
 
 
 def test_run_trials_keeps_table_order_across_workers():
-    # 70 + 40 rows in two chunks each with two processes: this one and a worker share them
+    # 70 + 40 rows in two chunks each with two processes: two worker processes share them
     tables = [
         (0, baseline_candidates(cube(), HANDS["parallel_jaw"], 70, np.random.default_rng(2))),
         (1, baseline_candidates(cube(), HANDS["barrett"], 40, np.random.default_rng(3))),
@@ -384,3 +384,22 @@ def test_run_trials_builds_the_objects_grid_once_for_every_hand_and_worker(monke
     assert len(built) == 1 and [len(rows) for rows in results] == [30, 30]
     assert run_trials(cube(), [HANDS["barrett"]], [(0, tables[1][1].iloc[:0])], None) == [[]]
     assert len(built) == 1  # no rows: no grid
+
+
+def _freeze_count():
+    import gc
+
+    return gc.get_freeze_count()
+
+
+def test_a_pool_worker_keeps_its_start_out_of_the_garbage_collectors_full_passes():
+    import concurrent.futures
+
+    from pipeline import pool
+    from pipeline.trial.engine import start_pool_worker
+
+    pool.start()
+    with concurrent.futures.ProcessPoolExecutor(
+        1, pool.context(), initializer=start_pool_worker, initargs=({},)
+    ) as executor:
+        assert executor.submit(_freeze_count).result() > 10_000  # numpy's, open3d's, the engine's objects
