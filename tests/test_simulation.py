@@ -274,7 +274,7 @@ def test_chunks_cover_every_row_once_each_a_sample_of_its_table_with_workers():
 
 
 def test_run_trials_keeps_table_order_across_workers():
-    # 70 + 40 rows in two chunks each with two processes: two worker processes share them
+    # 70 + 40 rows in two chunks each with two processes: this one and a worker share them
     tables = [
         (0, baseline_candidates(cube(), HANDS["parallel_jaw"], 70, np.random.default_rng(2))),
         (1, baseline_candidates(cube(), HANDS["barrett"], 40, np.random.default_rng(3))),

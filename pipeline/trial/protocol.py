@@ -29,7 +29,9 @@ contacts (``contacts.parquet``): one row per contact; ``trial`` (row number in t
 ``nx, ny, nz`` (the object's outward unit normal).
 """
 
+import collections
 import concurrent.futures
+import threading
 
 import numpy as np
 import pandas as pd
@@ -125,9 +127,10 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
     settings : SimulateParams or None
         How the trials run (:class:`pipeline.trial.engine.GraspEngine`'s ``settings``).
     workers : int
-        Processes: one runs every chunk here; more run them in as many worker processes
-        (:mod:`pipeline.pool`), each the next chunk left, with a copy of the engines this one
-        builds (one object mesh for every hand). Results do not depend on it.
+        Processes, this one included: it builds the engines (one object mesh for every hand),
+        then runs chunks itself while ``workers - 1`` worker processes (:mod:`pipeline.pool`)
+        start with a copy of them and take theirs, each the next chunk left. Results do not
+        depend on it.
     progress : callable(int, int), optional
         Called with the number of trials just finished and the total.
 
@@ -140,52 +143,77 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
         for _, table in tables
     ]
     parts = list(chunks([len(rows) for rows in targets], workers))
-    done, total = [None] * len(parts), sum(map(len, targets))
+    done, total, lock = [None] * len(parts), sum(map(len, targets)), threading.Lock()
+    left = collections.deque(range(len(parts)))
+
+    def take():
+        with lock:
+            return left.popleft() if left else None
+
+    def finish(number, results):
+        with lock:
+            done[number] = results
+            if progress:
+                progress(len(results), total)
 
     def chunk_of(number):
         table, rows = parts[number]
         return tables[table][0], [targets[table][row] for row in rows]
-
-    def finish(number, results):
-        done[number] = results
-        if progress:
-            progress(len(results), total)
 
     # the object's distance grid is most of an engine's set-up: built once, here, and copied
     settings = trial_settings(settings)
     used = sorted({number for (number, _), rows in zip(tables, targets) if rows})
     mesh = object_mesh(surface, settings) if used else None
     engines = {number: GraspEngine(surface, hands[number], settings, mesh=mesh) for number in used}
-    processes = min(workers, len(parts))
-    if processes <= 1:
+    feeders, failed = [], []
+    helpers = min(workers, len(parts)) - 1
+    if helpers > 0:  # a core per process: open3d's threads would only contend for them
+        mesh.threads = 1
+    executor = (
+        concurrent.futures.ProcessPoolExecutor(
+            helpers, pool.context(), initializer=start_pool_worker, initargs=(engines,)
+        )
+        if helpers > 0
+        else None
+    )
+
+    def feed(number, future):  # keeps one worker process busy, chunk after chunk
+        try:
+            while True:
+                finish(number, future.result())
+                if (number := take()) is None:
+                    return
+                future = executor.submit(run_chunk, *chunk_of(number))
+        except BaseException as error:  # noqa: BLE001 (raised again in the caller's thread)
+            failed.append(error)
+            with lock:
+                left.clear()
+
+    try:
+        for _ in range(helpers):
+            # each worker's process starts from this thread before it works: started from another
+            # thread while this one computes, each step of the start would wait for the interpreter
+            # lock (about 0.5 s in all, the first chunk's time here)
+            number = take()
+            feeders.append(threading.Thread(target=feed, args=(number, executor.submit(run_chunk, *chunk_of(number)))))
+            feeders[-1].start()
         start_worker(engines)
         try:
-            for number in range(len(parts)):
+            while (number := take()) is not None:
                 finish(number, run_chunk(*chunk_of(number)))
+        except BaseException:
+            with lock:
+                left.clear()
+            raise
         finally:
             stop_worker()
-    else:
-        # the workers compute, this process only hands out chunks: computing too, its main thread
-        # would hold the interpreter lock through long kernel calls while its pool's threads wait
-        # for it at each step of moving a chunk or a result (0.13-0.2 s a chunk, the worker idle)
-        mesh.threads = 1  # a core per process: open3d's threads would only contend for them
-        executor = concurrent.futures.ProcessPoolExecutor(
-            processes, pool.context(), initializer=start_pool_worker, initargs=(engines,)
-        )
-        try:
-            # one chunk more than processes: waiting in the pool's queue, the next chunk of
-            # whichever worker ends first
-            following = min(processes + 1, len(parts))
-            running = {executor.submit(run_chunk, *chunk_of(number)): number for number in range(following)}
-            while running:
-                ended, _ = concurrent.futures.wait(running, return_when=concurrent.futures.FIRST_COMPLETED)
-                for future in ended:
-                    finish(running.pop(future), future.result())
-                    if following < len(parts):
-                        running[executor.submit(run_chunk, *chunk_of(following))] = following
-                        following += 1
-        finally:
+            for feeder in feeders:
+                feeder.join()
+    finally:
+        if executor:
             executor.shutdown(cancel_futures=True)
+    if failed:
+        raise failed[0]
     results = [[None] * len(rows) for rows in targets]
     for (table, rows), found in zip(parts, done):
         for row, result in zip(rows, found):
