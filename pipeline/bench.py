@@ -256,8 +256,9 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
     goes; its outcomes and, on the first ``reference_trials``, their confusion table against
     :mod:`pipeline.trial.reference` (pybullet's exact queries, the same protocol); and
     :func:`pipeline.trial.protocol.run_trials` of the two ends of a stage's batch on one core
-    (:func:`one_core`), in one process and on every core. Returns the rows. (The engine it replaced, one pybullet trial at a
-    time, is gone; its rates beside this one's are in docs/benchmarks.md.)"""
+    (:func:`one_core`), in one process and on every core. Returns the rows. (The engine it
+    replaced, one pybullet trial at a time, is gone; its rates beside this one's are in
+    docs/benchmarks.md.)"""
     from . import pool
     from .trial.reference import ReferenceEngine
 
