@@ -29,6 +29,10 @@ from .pool import default_workers
 from .trial.engine import GraspEngine
 from .trial.protocol import CHUNK, run_trials
 
+#: run_trials' batches in the trial bench: a small and a median default simulate stage (make
+#: run's run up to 3,276 trials, median about 2,000)
+TRIAL_BATCHES = (512, 2048)
+
 BOX_HALF = np.array([0.05, 0.03, 0.01])
 CAPSULE_RADIUS, CAPSULE_HALF_LENGTH = 0.02, 0.05
 
@@ -255,7 +259,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
     (:mod:`pipeline.trial.engine`, batched) on random MAT candidates, one core; where its time
     goes; its outcomes and, on the first ``reference_trials``, their confusion table against
     :mod:`pipeline.trial.reference` (pybullet's exact queries, the same protocol); and
-    :func:`pipeline.trial.protocol.run_trials` of the two ends of a stage's batch on one core
+    :func:`pipeline.trial.protocol.run_trials` of :data:`TRIAL_BATCHES` trials on one core
     (:func:`one_core`), in one process and on every core. Returns the rows. (The engine it
     replaced, one pybullet trial at a time, is gone; its rates beside this one's are in
     docs/benchmarks.md.)"""
@@ -268,7 +272,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
     artefacts, faces = trial_bench_chain()
     surface, symmetry = artefacts["sample"], artefacts["classify"]
     settings = SimulateParams()
-    batches = (CHUNK, 2 * cores * CHUNK)
+    batches = TRIAL_BATCHES
     out(f"grasp trials on the duck ({faces} triangles), {trials} random MAT candidates per hand; all cores = {cores}")
     out(
         "engine: one core, the engine set up. run_trials (the engine's set-up included, medians of 3) of "

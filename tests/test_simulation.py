@@ -265,7 +265,7 @@ def test_chunks_cover_every_row_once_each_a_sample_of_its_table_with_workers():
         assert rows == [(table, row) for table, length in enumerate(lengths) for row in range(length)]
         assert max(len(chunk) for _, chunk in found) <= CHUNK
         if workers == 1:  # one process: the engine's full chunks of consecutive rows
-            assert [len(chunk) for _, chunk in found] == [512, 512, 276, 70]
+            assert [len(chunk) for _, chunk in found] == [CHUNK, 1300 - CHUNK, 70]
             assert all((np.diff(chunk) == 1).all() for _, chunk in found)
         else:  # a multiple of the workers per table, each every count-th row of it
             per_table = [sum(table == number for table, _ in found) for number in range(3)]

@@ -55,9 +55,10 @@ from .engine import (
 PLANNERS = ("mat", "baseline", "encompassing")
 
 # trials advanced together: the closing loop runs as many passes as its slowest trial needs, each
-# a fixed cost of numpy calls, so larger chunks share them over more trials (ARMAR-III on the
-# duck: closing 1.1 s per 512 trials in chunks of 128, 0.67 s in one of 512)
-CHUNK = 512
+# a fixed cost of numpy calls, so larger chunks share them over more trials (on the duck, one
+# core, 2,048 trials: ARMAR-III 5.06 s in chunks of 256, 4.65 s of 512, 4.40 s of 1,024;
+# Barrett 4.31, 3.83, 3.51 s), at a little more memory (franka's largest: +0.1 GB at 1,024)
+CHUNK = 1024
 
 
 def select_candidates(candidates, hand_name, spheres, rng, *, encompassing=False):
@@ -195,7 +196,9 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
             # thread while this one computes, each step of the start would wait for the interpreter
             # lock (about 0.5 s in all, the first chunk's time here)
             number = take()
-            feeders.append(threading.Thread(target=feed, args=(number, executor.submit(run_chunk, *chunk_of(number)))))
+            feeders.append(
+                threading.Thread(target=feed, args=(number, executor.submit(run_chunk, *chunk_of(number))), daemon=True)
+            )
             feeders[-1].start()
         start_worker(engines)
         try:
