@@ -80,7 +80,7 @@ def run_bench(
         tables["symmetry"] = run_symmetry_bench(repeats=repeats, out=out)
         out("")
     if only in (None, "trials"):
-        tables["trials"] = run_trial_bench(trials=trials, reference_trials=reference_trials, out=out)
+        tables["trials"] = run_trial_bench(trials=trials, reference_trials=reference_trials, repeats=repeats, out=out)
         out("")
     if only in (None, "checks"):
         tables["checks"] = run_check_bench(out=out)
@@ -254,13 +254,28 @@ def one_core():
         hold(before)
 
 
-def run_trial_bench(*, trials=512, reference_trials=60, out=print):
+def interleaved_seconds(runs, rounds, clock=time.perf_counter):
+    """Seconds of each of ``runs`` ({name: callable}), ``rounds`` times, one of each per round in
+    turn, so that the machine's drift (a noisy neighbour, a slower phase) reaches every run alike
+    and their ratios can be taken round by round: {name: (rounds,) float array}."""
+    seconds = {name: [] for name in runs}
+    for _ in range(rounds):
+        for name, run in runs.items():
+            start = clock()
+            run()
+            seconds[name].append(clock() - start)
+    return {name: np.array(values) for name, values in seconds.items()}
+
+
+def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     """Grasp trials per second per hand on a ~17k-triangle duck, the engine
     (:mod:`pipeline.trial.engine`, batched) on random MAT candidates, one core; where its time
     goes; its outcomes and, on the first ``reference_trials``, their confusion table against
     :mod:`pipeline.trial.reference` (pybullet's exact queries, the same protocol); and
     :func:`pipeline.trial.protocol.run_trials` of :data:`TRIAL_BATCHES` trials on one core
-    (:func:`one_core`), in one process and on every core. Returns the rows. (The engine it
+    (:func:`one_core`), in one process and on every core, in ``repeats`` interleaved rounds
+    (:func:`interleaved_seconds`): rates are medians, ratios the median of each round's. Returns
+    the rows. (The engine it
     replaced, one pybullet trial at a time, is gone; its rates beside this one's are in
     docs/benchmarks.md.)"""
     from . import pool
@@ -275,7 +290,8 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
     batches = TRIAL_BATCHES
     out(f"grasp trials on the duck ({faces} triangles), {trials} random MAT candidates per hand; all cores = {cores}")
     out(
-        "engine: one core, the engine set up. run_trials (the engine's set-up included, medians of 3) of "
+        f"engine: one core, the engine set up. run_trials (the engine's set-up included; {repeats} rounds, "
+        "the three ways in turn; rates: medians; ratios: the median of the rounds') of "
         f"{' and '.join(map(str, batches))} trials (the candidates repeated; a default simulate stage has "
         "400-3,000): one core (every thread of the process held to one CPU), one process (its open3d "
         "threads on every core) and all cores; ratio: all cores / one core (/ one process)"
@@ -298,21 +314,29 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
             for result in engine.run(*(values[first : first + CHUNK] for values in targets))
         ]
         new_rate = len(table) / (time.perf_counter() - start)
-        rates = {}
+        rates, ratios = {}, {}
         for batch in batches:
             repeated = pd.concat([table] * (-(-batch // len(table))), ignore_index=True).iloc[:batch]
-            for key, workers, holder in (
-                ("core", 1, one_core),
-                ("process", 1, contextlib.nullcontext),
-                ("all", cores, contextlib.nullcontext),
-            ):
-                seconds = []
-                for _ in range(3):
+
+            def timed(workers, holder):
+                def run():
                     with holder():
-                        start = time.perf_counter()
                         run_trials(surface, [hand], [(0, repeated)], settings, workers=workers)
-                        seconds.append(time.perf_counter() - start)
-                rates[batch, key] = batch / float(np.median(seconds))
+
+                return run
+
+            seconds = interleaved_seconds(
+                {
+                    "core": timed(1, one_core),
+                    "process": timed(1, contextlib.nullcontext),
+                    "all": timed(cores, contextlib.nullcontext),
+                },
+                repeats,
+            )
+            for key, values in seconds.items():
+                rates[batch, key] = batch / float(np.median(values))
+            for key in ("core", "process"):
+                ratios[batch, key] = float(np.median(seconds[key] / seconds["all"]))
         outcomes = Counter(result.outcome for result in new)
         share = "/".join(f"{seconds:.1f}" for seconds in engine.seconds.values())
         row = dict(
@@ -325,8 +349,8 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
                     one_core_per_s=round(rates[batch, "core"], 1),
                     one_process_per_s=round(rates[batch, "process"], 1),
                     all_cores_per_s=round(rates[batch, "all"], 1),
-                    ratio=round(rates[batch, "all"] / rates[batch, "core"], 2),
-                    ratio_to_one_process=round(rates[batch, "all"] / rates[batch, "process"], 2),
+                    ratio=round(ratios[batch, "core"], 2),
+                    ratio_to_one_process=round(ratios[batch, "process"], 2),
                 )
                 for batch in batches
             ],
@@ -338,7 +362,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, out=print):
             f"{name:13} {new_rate:7.1f}"
             + "".join(
                 f" | {batch:>5}: {rates[batch, 'core']:7.1f} {rates[batch, 'process']:7.1f} {rates[batch, 'all']:8.1f} "
-                f"{rates[batch, 'all'] / rates[batch, 'core']:5.2f} ({rates[batch, 'all'] / rates[batch, 'process']:4.2f})"
+                f"{ratios[batch, 'core']:5.2f} ({ratios[batch, 'process']:4.2f})"
                 for batch in batches
             )
             + f"  {share}; "

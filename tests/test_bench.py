@@ -71,3 +71,26 @@ def test_the_run_table_reads_each_stage_from_its_logs_start_and_end(tmp_path):
     assert row["stages"] == 2 and set(row["running_s"]) == {0, 1}
     assert row["running_s"][1] == pytest.approx(row["stage_s"]) and row["stage_s"] >= 0.1
     assert row["span_s"] == pytest.approx(row["stage_s"] + row["running_s"][0]) and row["running_s"][0] >= 0.05
+
+
+def test_interleaved_rounds_keep_a_ratio_exact_while_the_machine_slows_down():
+    from pipeline.bench import interleaved_seconds
+
+    # a fake clock whose machine runs each round at a third of the last round's speed: a run of
+    # `work` units costs work * slowdown seconds, and one core's run twice the all-cores' work
+    now, slowdown, order = [0.0], [1.0], []
+
+    def run(name, work):
+        def action():
+            order.append(name)
+            now[0] += work * slowdown[0]
+            if len(order) % 2 == 0:  # a round ends: the machine slows down
+                slowdown[0] *= 3
+
+        return action
+
+    seconds = interleaved_seconds({"core": run("core", 2.0), "all": run("all", 1.0)}, 3, clock=lambda: now[0])
+    assert order == ["core", "all"] * 3  # one of each per round, in turn
+    assert seconds["core"].tolist() == [2.0, 6.0, 18.0]
+    assert seconds["all"].tolist() == [1.0, 3.0, 9.0]
+    assert (seconds["core"] / seconds["all"]).tolist() == [2.0, 2.0, 2.0]
