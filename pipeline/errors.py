@@ -19,3 +19,7 @@ class DegenerateGeometryError(PipelineError):
 
 class ArtefactError(PipelineError):
     """An artefact file that is missing, corrupt or of another schema version."""
+
+
+class WorkerError(PipelineError):
+    """A worker process that ended abruptly (killed by a signal, or by the system for memory)."""

@@ -386,6 +386,29 @@ def test_run_trials_builds_the_objects_grid_once_for_every_hand_and_worker(monke
     assert len(built) == 1  # no rows: no grid
 
 
+def test_a_worker_killed_mid_run_is_one_clear_error_not_a_broken_pool(monkeypatch):
+    import multiprocessing
+    import os
+    import signal
+
+    from pipeline.errors import PipelineError, WorkerError
+    from pipeline.trial import protocol
+
+    monkeypatch.setattr(protocol, "CHUNK", 4)  # 64 rows in 16 chunks: most still to run at the kill
+    table = baseline_candidates(cube(), HANDS["parallel_jaw"], 64, np.random.default_rng(2))
+    killed = []
+
+    def kill_the_workers(finished, total):  # as the system does when memory runs out
+        if not killed:
+            killed.extend(child.pid for child in multiprocessing.active_children())
+            for pid in killed:
+                os.kill(pid, signal.SIGKILL)
+
+    with pytest.raises(WorkerError, match="worker process ended abruptly.*64 trials.*fewer workers") as raised:
+        run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=2, progress=kill_the_workers)
+    assert killed and isinstance(raised.value, PipelineError)  # a stage prints it as one line
+
+
 def _freeze_count():
     import gc
 

@@ -38,6 +38,7 @@ import pandas as pd
 
 from .. import pool, seeds
 from ..arrays import vectors
+from ..errors import WorkerError
 from .engine import (
     OUTCOMES,
     GraspEngine,
@@ -194,7 +195,7 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
         for _ in range(helpers):
             # each worker's process starts from this thread before it works: started from another
             # thread while this one computes, each step of the start would wait for the interpreter
-            # lock (about 0.5 s in all, the first chunk's time here)
+            # lock (about 0.5 s in all on the duck, the first chunk's time here)
             number = take()
             feeders.append(
                 threading.Thread(target=feed, args=(number, executor.submit(run_chunk, *chunk_of(number))), daemon=True)
@@ -216,6 +217,12 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
         if executor:
             executor.shutdown(cancel_futures=True)
     if failed:
+        if isinstance(failed[0], concurrent.futures.BrokenExecutor):
+            raise WorkerError(
+                f"a trial worker process ended abruptly (killed by a signal, or by the system for memory) "
+                f"with {total} trials to run on {workers} processes; rerun with fewer workers (params.yaml's "
+                f"simulate.workers, or --workers): each holds the object's mesh and a chunk of up to {CHUNK} trials"
+            ) from failed[0]
         raise failed[0]
     results = [[None] * len(rows) for rows in targets]
     for (table, rows), found in zip(parts, done):
