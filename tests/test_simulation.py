@@ -3,6 +3,7 @@
 import dataclasses
 import functools
 import itertools
+import re
 
 import numpy as np
 import pandas as pd
@@ -404,7 +405,10 @@ def test_a_worker_killed_mid_run_is_one_clear_error_not_a_broken_pool(monkeypatc
             for pid in killed:
                 os.kill(pid, signal.SIGKILL)
 
-    with pytest.raises(WorkerError, match="worker process ended abruptly.*64 trials.*fewer workers") as raised:
+    with pytest.raises(
+        WorkerError,
+        match=re.escape(cube().source) + ": a trial worker process ended abruptly.*64 trials.*fewer workers",
+    ) as raised:
         run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=2, progress=kill_the_workers)
     assert killed and isinstance(raised.value, PipelineError)  # a stage prints it as one line
 

@@ -219,7 +219,7 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
     if failed:
         if isinstance(failed[0], concurrent.futures.BrokenExecutor):
             raise WorkerError(
-                f"a trial worker process ended abruptly (killed by a signal, or by the system for memory) "
+                f"{surface.source}: a trial worker process ended abruptly (killed by a signal, or by the system for memory) "
                 f"with {total} trials to run on {workers} processes; rerun with fewer workers (params.yaml's "
                 f"simulate.workers, or --workers): each holds the object's mesh and a chunk of up to {CHUNK} trials"
             ) from failed[0]
