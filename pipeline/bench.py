@@ -275,9 +275,8 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     :func:`pipeline.trial.protocol.run_trials` of :data:`TRIAL_BATCHES` trials on one core
     (:func:`one_core`), in one process and on every core, in ``repeats`` interleaved rounds
     (:func:`interleaved_seconds`): rates are medians, ratios the median of each round's. Returns
-    the rows. (The engine it
-    replaced, one pybullet trial at a time, is gone; its rates beside this one's are in
-    docs/benchmarks.md.)"""
+    the rows. (The engine it replaced, one pybullet trial at a time, is gone; its rates beside
+    this one's are in docs/benchmarks.md.)"""
     from . import pool
     from .trial.reference import ReferenceEngine
 
