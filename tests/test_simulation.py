@@ -430,3 +430,15 @@ def test_a_pool_worker_keeps_its_start_out_of_the_garbage_collectors_full_passes
         1, pool.context(), initializer=start_pool_worker, initargs=({},)
     ) as executor:
         assert executor.submit(_freeze_count).result() > 10_000  # numpy's, open3d's, the engine's objects
+
+
+def test_an_engines_process_and_a_pool_worker_keep_freed_memory(monkeypatch):
+    from pipeline.trial import engine
+
+    calls = []
+    monkeypatch.setattr(engine, "keep_freed_memory", lambda: calls.append(True))
+    monkeypatch.setattr(engine.gc, "freeze", lambda: None)  # not this test process's objects
+    engine.GraspEngine(cube(), HANDS["parallel_jaw"])
+    engine.start_pool_worker({})
+    engine.stop_worker()
+    assert len(calls) == 2  # pipeline/allocator.py's test shows what it does

@@ -46,6 +46,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..allocator import keep_freed_memory
 from ..errors import BadInputError
 from ..geometry.mass import torque_reference
 from ..geometry.mesh_query import ObjectMesh
@@ -163,6 +164,8 @@ class GraspEngine:
         )
         #: seconds spent in each step of the trials run so far (the bench's breakdown)
         self.seconds = dict.fromkeys(("place", "retreat", "approach", "closing", "contacts"), 0.0)
+        # each closing pass frees and allocates the same temporaries again: keep them in the heap
+        keep_freed_memory()
 
     def _lap(self, step, start):
         now = time.perf_counter()
@@ -553,8 +556,10 @@ def start_worker(engines):
 def start_pool_worker(engines):
     """:func:`start_worker` in a worker process of a pool, whose objects so far (the imported
     libraries', the engines') are moved out of the garbage collector's reach: a full collection
-    walked them all, about 0.12 s, between one chunk and the next."""
+    walked them all, about 0.12 s, between one chunk and the next. Its malloc keeps freed memory
+    (:func:`pipeline.allocator.keep_freed_memory`), as the engines' builder's does."""
     gc.freeze()
+    keep_freed_memory()
     start_worker(engines)
 
 

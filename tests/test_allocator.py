@@ -1,0 +1,43 @@
+"""The malloc limits the trial engine sets: freed temporaries stay in the heap for the next pass."""
+
+import subprocess
+import sys
+
+# a closing pass's pattern: 8 temporaries of 4 MB filled, then freed, five times after a first
+# pass; prints whether the limits were set and the minor page faults of the five passes
+CHURN = """
+import resource, sys
+import numpy as np
+from pipeline.allocator import keep_freed_memory
+
+kept = keep_freed_memory() if sys.argv[1] == "keep" else None
+
+def faults():
+    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+
+def one_pass():
+    arrays = [np.ones(1 << 19) for _ in range(8)]
+    del arrays
+
+one_pass()
+before = faults()
+for _ in range(5):
+    one_pass()
+print(kept, faults() - before)
+"""
+
+
+def _churn(mode):
+    # a fresh process: a used one has raised its own thresholds already
+    output = subprocess.run([sys.executable, "-c", CHURN, mode], capture_output=True, text=True, check=True).stdout
+    kept, faults = output.split()
+    return kept, int(faults)
+
+
+def test_kept_memory_is_reused_without_page_faults_where_glibcs_defaults_fault_it_in_again():
+    pages = 5 * 8 * (4 << 20) // 4096  # what the five passes touch
+    kept, faults = _churn("keep")
+    assert kept == "True" and faults < 0.01 * pages
+    # the control: by default the freed heap top is trimmed and its pages faulted in again
+    kept, faults = _churn("default")
+    assert kept == "None" and faults > 0.2 * pages
