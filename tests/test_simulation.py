@@ -3,7 +3,10 @@
 import dataclasses
 import functools
 import itertools
+import pickle
+import queue
 import re
+import threading
 
 import numpy as np
 import pandas as pd
@@ -413,32 +416,75 @@ def test_a_worker_killed_mid_run_is_one_clear_error_not_a_broken_pool(monkeypatc
     assert killed and isinstance(raised.value, PipelineError)  # a stage prints it as one line
 
 
+def test_the_workers_started_before_the_engines_are_built_do_not_outlive_a_failed_build(monkeypatch):
+    from pipeline.errors import BadInputError
+    from pipeline.trial import protocol
+
+    def broken_mesh(surface, settings):  # the workers are started by now, waiting for the engines
+        raise BadInputError(f"{surface.source}: broken")
+
+    monkeypatch.setattr(protocol, "object_mesh", broken_mesh)
+    table = baseline_candidates(cube(), HANDS["parallel_jaw"], 8, np.random.default_rng(2))
+    raised = []
+
+    def run():
+        try:
+            run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=2)
+        except BadInputError as error:
+            raised.append(error)
+
+    running = threading.Thread(target=run, daemon=True)
+    running.start()
+    running.join(timeout=60)
+    assert not running.is_alive(), "run_trials hung on its workers after the engines' build failed"
+    assert [str(error) for error in raised] == [f"{cube().source}: broken"]
+
+
+def test_the_workers_copy_of_the_engines_is_removed_once_they_end(monkeypatch, tmp_path):
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    table = baseline_candidates(cube(), HANDS["parallel_jaw"], 8, np.random.default_rng(2))
+    results = run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=2)
+    assert [len(rows) for rows in results] == [8]
+    for closing in [thread for thread in threading.enumerate() if thread.name == "close trial pool"]:
+        closing.join(timeout=60)
+    assert list(tmp_path.iterdir()) == []
+
+
 def _freeze_count():
     import gc
 
     return gc.get_freeze_count()
 
 
-def test_a_pool_worker_keeps_its_start_out_of_the_garbage_collectors_full_passes():
+def test_a_pool_worker_keeps_its_start_out_of_the_garbage_collectors_full_passes(tmp_path):
     import concurrent.futures
 
     from pipeline import pool
     from pipeline.trial.engine import start_pool_worker
 
     pool.start()
+    shipped = pool.context().SimpleQueue()
     with concurrent.futures.ProcessPoolExecutor(
-        1, pool.context(), initializer=start_pool_worker, initargs=({},)
+        1, pool.context(), initializer=start_pool_worker, initargs=(shipped,)
     ) as executor:
-        assert executor.submit(_freeze_count).result() > 10_000  # numpy's, open3d's, the engine's objects
+        counted = executor.submit(_freeze_count)
+        (tmp_path / "engines.pickle").write_bytes(pickle.dumps({}))
+        shipped.put(str(tmp_path / "engines.pickle"))  # the engines, once built: the worker waits
+        assert counted.result() > 10_000  # numpy's, open3d's, the engine's objects
 
 
-def test_an_engines_process_and_a_pool_worker_keep_freed_memory(monkeypatch):
+def test_an_engines_process_and_a_pool_worker_keep_freed_memory(monkeypatch, tmp_path):
     from pipeline.trial import engine
 
     calls = []
     monkeypatch.setattr(engine, "keep_freed_memory", lambda: calls.append(True))
     monkeypatch.setattr(engine.gc, "freeze", lambda: None)  # not this test process's objects
     engine.GraspEngine(cube(), HANDS["parallel_jaw"])
-    engine.start_pool_worker({})
+    (tmp_path / "engines.pickle").write_bytes(pickle.dumps({}))
+    shipped = queue.SimpleQueue()  # stands for the caller's queue of the engines' file
+    shipped.put(tmp_path / "engines.pickle")
+    engine.start_pool_worker(shipped)
     engine.stop_worker()
     assert len(calls) == 2  # pipeline/allocator.py's test shows what it does

@@ -40,6 +40,7 @@ on the batch size or the number of worker processes.
 """
 
 import gc
+import pickle
 import time
 from dataclasses import dataclass, field
 
@@ -553,11 +554,15 @@ def start_worker(engines):
     _WORKER.update(engines=engines)
 
 
-def start_pool_worker(engines):
-    """:func:`start_worker` in a worker process of a pool, whose objects so far (the imported
-    libraries', the engines') are moved out of the garbage collector's reach: a full collection
-    walked them all, about 0.12 s, between one chunk and the next. Its malloc keeps freed memory
-    (:func:`pipeline.allocator.keep_freed_memory`), as the engines' builder's does."""
+def start_pool_worker(shipped):
+    """:func:`start_worker` in a worker process of a pool, with the engines pickled in the file
+    whose path its caller puts on the queue ``shipped`` once they are built (the process starts
+    meanwhile). The objects so far (the imported libraries', the engines') are moved out of the
+    garbage collector's reach: a full collection walked them all, about 0.12 s, between one chunk
+    and the next. Its malloc keeps freed memory (:func:`pipeline.allocator.keep_freed_memory`), as
+    the caller's does."""
+    with open(shipped.get(), "rb") as file:
+        engines = pickle.load(file)
     gc.freeze()
     keep_freed_memory()
     start_worker(engines)

@@ -31,6 +31,9 @@ contacts (``contacts.parquet``): one row per contact; ``trial`` (row number in t
 
 import collections
 import concurrent.futures
+import os
+import pickle
+import tempfile
 import threading
 
 import numpy as np
@@ -130,9 +133,9 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
         How the trials run (:class:`pipeline.trial.engine.GraspEngine`'s ``settings``).
     workers : int
         Processes, this one included: it builds the engines (one object mesh for every hand),
-        then runs chunks itself while ``workers - 1`` worker processes (:mod:`pipeline.pool`)
-        start with a copy of them and take theirs, each the next chunk left. Results do not
-        depend on it.
+        then runs chunks itself, while ``workers - 1`` worker processes (:mod:`pipeline.pool`),
+        started first, wait for a copy of them and take theirs, each the next chunk left.
+        Results do not depend on it.
     progress : callable(int, int), optional
         Called with the number of trials just finished and the total.
 
@@ -162,22 +165,34 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
         table, rows = parts[number]
         return tables[table][0], [targets[table][row] for row in rows]
 
-    # the object's distance grid is most of an engine's set-up: built once, here, and copied
     settings = trial_settings(settings)
     used = sorted({number for (number, _), rows in zip(tables, targets) if rows})
-    mesh = object_mesh(surface, settings) if used else None
-    engines = {number: GraspEngine(surface, hands[number], settings, mesh=mesh) for number in used}
     feeders, failed = [], []
-    helpers = min(workers, len(parts)) - 1
-    if helpers > 0:  # a core per process: open3d's threads would only contend for them
-        mesh.threads = 1
+    helpers = unsent = min(workers, len(parts)) - 1
+    # the worker processes start while this one builds the engines, then wait on the queue
+    # ``shipped`` for the file that holds them, pickled (a pipe would move them 64 KB a write,
+    # each waiting for this thread to let go of the interpreter: a worker started 0.06 s late)
+    shipped = pool.context().SimpleQueue() if helpers > 0 else None
+    copies = []
     executor = (
         concurrent.futures.ProcessPoolExecutor(
-            helpers, pool.context(), initializer=start_pool_worker, initargs=(engines,)
+            helpers, pool.context(), initializer=start_pool_worker, initargs=(shipped,)
         )
         if helpers > 0
         else None
     )
+
+    def ship(engines):  # to every worker still waiting (with none, each fails its chunks)
+        nonlocal unsent
+        if not unsent:
+            return
+        handle, path = tempfile.mkstemp(prefix="engines-", suffix=".pickle")
+        copies.append(path)
+        with os.fdopen(handle, "wb") as file:
+            pickle.dump(engines, file, pickle.HIGHEST_PROTOCOL)
+        for _ in range(unsent):
+            shipped.put(path)
+        unsent = 0
 
     def feed(number, future):  # keeps one worker process busy, chunk after chunk
         try:
@@ -201,6 +216,12 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
                 threading.Thread(target=feed, args=(number, executor.submit(run_chunk, *chunk_of(number))), daemon=True)
             )
             feeders[-1].start()
+        # the object's distance grid is most of an engine's set-up: built once, here
+        mesh = object_mesh(surface, settings) if used else None
+        engines = {number: GraspEngine(surface, hands[number], settings, mesh=mesh) for number in used}
+        if helpers > 0:
+            mesh.threads = 1  # a core per process: open3d's threads would only contend for them
+            ship(engines)
         start_worker(engines)
         try:
             while (number := take()) is not None:
@@ -215,7 +236,9 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
                 feeder.join()
     finally:
         if executor:
-            executor.shutdown(cancel_futures=True)
+            ship({})  # the engines' build failed: the workers end rather than wait
+            # the workers' exit (0.015 s) and the removal of their copy go on in the background
+            threading.Thread(target=_close_pool, args=(executor, shipped, copies), name="close trial pool").start()
     if failed:
         if isinstance(failed[0], concurrent.futures.BrokenExecutor):
             raise WorkerError(
@@ -229,6 +252,15 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
         for row, result in zip(rows, found):
             results[table][row] = result
     return results
+
+
+def _close_pool(executor, shipped, copies):
+    """Wait for ``executor``'s workers to end, then close the queue ``shipped`` and remove the
+    files ``copies`` they read their engines from."""
+    executor.shutdown(cancel_futures=True)
+    shipped.close()
+    for path in copies:
+        os.unlink(path)
 
 
 def simulate(
