@@ -440,16 +440,25 @@ def test_the_workers_started_before_the_engines_are_built_do_not_outlive_a_faile
     assert [str(error) for error in raised] == [f"{cube().source}: broken"]
 
 
-def test_the_workers_copy_of_the_engines_is_removed_once_they_end(monkeypatch, tmp_path):
+def test_the_workers_copy_of_the_engines_is_removed_once_they_end(monkeypatch):
+    import os
     import tempfile
 
-    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    from pipeline.trial import protocol
+
+    written, mkstemp = [], tempfile.mkstemp
+
+    def recorded(**names):
+        written.append(mkstemp(**names))
+        return written[-1]
+
+    monkeypatch.setattr(protocol.tempfile, "mkstemp", recorded)
     table = baseline_candidates(cube(), HANDS["parallel_jaw"], 8, np.random.default_rng(2))
     results = run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=2)
     assert [len(rows) for rows in results] == [8]
     for closing in [thread for thread in threading.enumerate() if thread.name == "close trial pool"]:
         closing.join(timeout=60)
-    assert list(tmp_path.iterdir()) == []
+    assert len(written) == 1 and not os.path.exists(written[0][1])
 
 
 def _freeze_count():

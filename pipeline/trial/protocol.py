@@ -168,12 +168,12 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
     settings = trial_settings(settings)
     used = sorted({number for (number, _), rows in zip(tables, targets) if rows})
     feeders, failed = [], []
-    helpers = unsent = min(workers, len(parts)) - 1
+    helpers = min(workers, len(parts)) - 1
     # the worker processes start while this one builds the engines, then wait on the queue
     # ``shipped`` for the file that holds them, pickled (a pipe would move them 64 KB a write,
     # each waiting for this thread to let go of the interpreter: a worker started 0.06 s late)
     shipped = pool.context().SimpleQueue() if helpers > 0 else None
-    copies = []
+    copy = None  # that file's path, once written
     executor = (
         concurrent.futures.ProcessPoolExecutor(
             helpers, pool.context(), initializer=start_pool_worker, initargs=(shipped,)
@@ -182,17 +182,15 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
         else None
     )
 
-    def ship(engines):  # to every worker still waiting (with none, each fails its chunks)
-        nonlocal unsent
-        if not unsent:
+    def ship(engines):  # once, to every worker (with none, each fails its chunks)
+        nonlocal copy
+        if copy is not None:
             return
-        handle, path = tempfile.mkstemp(prefix="engines-", suffix=".pickle")
-        copies.append(path)
+        handle, copy = tempfile.mkstemp(prefix="engines-", suffix=".pickle")
         with os.fdopen(handle, "wb") as file:
             pickle.dump(engines, file, pickle.HIGHEST_PROTOCOL)
-        for _ in range(unsent):
-            shipped.put(path)
-        unsent = 0
+        for _ in range(helpers):
+            shipped.put(copy)
 
     def feed(number, future):  # keeps one worker process busy, chunk after chunk
         try:
@@ -238,7 +236,7 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
         if executor:
             ship({})  # the engines' build failed: the workers end rather than wait
             # the workers' exit (0.015 s) and the removal of their copy go on in the background
-            threading.Thread(target=_close_pool, args=(executor, shipped, copies), name="close trial pool").start()
+            threading.Thread(target=_close_pool, args=(executor, shipped, copy), name="close trial pool").start()
     if failed:
         if isinstance(failed[0], concurrent.futures.BrokenExecutor):
             raise WorkerError(
@@ -254,13 +252,12 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
     return results
 
 
-def _close_pool(executor, shipped, copies):
+def _close_pool(executor, shipped, copy):
     """Wait for ``executor``'s workers to end, then close the queue ``shipped`` and remove the
-    files ``copies`` they read their engines from."""
+    file ``copy`` they read their engines from."""
     executor.shutdown(cancel_futures=True)
     shipped.close()
-    for path in copies:
-        os.unlink(path)
+    os.unlink(copy)
 
 
 def simulate(
