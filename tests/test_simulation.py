@@ -484,6 +484,16 @@ def test_a_pool_worker_keeps_its_start_out_of_the_garbage_collectors_full_passes
         assert counted.result() > 10_000  # numpy's, open3d's, the engine's objects
 
 
+def test_run_trials_keeps_the_callers_objects_out_of_the_collectors_passes_while_it_runs():
+    assert _freeze_count() == 0, "the test process froze objects before the test"
+    counts = []
+    table = baseline_candidates(cube(), HANDS["parallel_jaw"], 4, np.random.default_rng(3))
+    run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, progress=lambda *_: counts.append(_freeze_count()))
+    # the test process's objects while the trials ran (pipeline/allocator.py's test shows what
+    # freezing does); afterwards, back in the collector's reach
+    assert counts and min(counts) > 10_000 and _freeze_count() == 0
+
+
 def test_an_engines_process_and_a_pool_worker_keep_freed_memory(monkeypatch, tmp_path):
     from pipeline.trial import engine
 
