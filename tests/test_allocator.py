@@ -77,10 +77,11 @@ def test_a_process_that_froze_objects_itself_keeps_them_frozen():
     old = []
     gc.freeze()
     try:
+        # frozen objects can still die (the count falls), but none is added or let go
         frozen = gc.get_freeze_count()
         young = []
         with objects_frozen():
-            assert gc.get_freeze_count() == frozen and _tracked(young)
-        assert gc.get_freeze_count() == frozen and not _tracked(old)
+            assert gc.get_freeze_count() <= frozen and _tracked(young)
+        assert 0 < gc.get_freeze_count() <= frozen and not _tracked(old) and _tracked(young)
     finally:
         gc.unfreeze()
