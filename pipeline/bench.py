@@ -10,7 +10,7 @@ import json
 import os
 import time
 import tracemalloc
-from collections import Counter
+from collections import Counter, defaultdict
 
 import numpy as np
 import pandas as pd
@@ -267,6 +267,33 @@ def interleaved_seconds(runs, rounds, clock=time.perf_counter):
     return {name: np.array(values) for name, values in seconds.items()}
 
 
+def timeline_parts(timeline):
+    """Seconds of a :func:`run_trials` call's steps from its ``timeline``: ``start`` (forking the
+    workers), ``set-up`` (the engines), ``ship`` (their copy for the workers), ``caller`` and
+    ``workers`` (the trials of the caller's chunks; of the busiest worker's), ``lag`` (that
+    worker's first chunk's start after the caller's first), ``results`` (its chunks' ends to
+    their results in the caller) and ``after`` (the last of those to the call's end)."""
+    spans = defaultdict(list)
+    for step, process, start, end in timeline:
+        spans[step, process].append((start, end))
+    busy = lambda step, process: sum(end - start for start, end in spans[step, process])  # noqa: E731
+    workers = sorted({process for step, process in spans if step == "chunk" and process})
+    busiest = max(workers, key=lambda process: busy("chunk", process), default=None)
+    (call,) = spans["call", 0]
+    return {
+        "start": busy("start workers", 0),
+        "set-up": busy("set-up", 0),
+        "ship": busy("ship", 0),
+        "caller": busy("chunk", 0),
+        "workers": busy("chunk", busiest) if workers else 0.0,
+        "lag": min(start for start, _ in spans["chunk", busiest]) - min(start for start, _ in spans["chunk", 0])
+        if workers
+        else 0.0,
+        "results": busy("results", busiest) if workers else 0.0,
+        "after": call[1] - max(end for (step, _), found in spans.items() if step != "call" for _, end in found),
+    }
+
+
 def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     """Grasp trials per second per hand on a ~17k-triangle duck, the engine
     (:mod:`pipeline.trial.engine`, batched) on random MAT candidates, one core; where its time
@@ -274,7 +301,8 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     :mod:`pipeline.trial.reference` (pybullet's exact queries, the same protocol); and
     :func:`pipeline.trial.protocol.run_trials` of :data:`TRIAL_BATCHES` trials on one core
     (:func:`one_core`), in one process and on every core, in ``repeats`` interleaved rounds
-    (:func:`interleaved_seconds`): rates are medians, ratios the median of each round's. Returns
+    (:func:`interleaved_seconds`): rates are medians, ratios the median of each round's, and where
+    the one-core and all-core calls' time went (:func:`timeline_parts`, medians). Returns
     the rows. (The engine it replaced, one pybullet trial at a time, is gone; its rates beside
     this one's are in docs/benchmarks.md.)"""
     from . import pool
@@ -302,6 +330,12 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
         )
         + "  engine s in place/retreat/approach/closing/contacts; outcomes"
     )
+    out(
+        "  then per batch, where run_trials' time went (medians of the rounds): on one core the set-up (the object "
+        "mesh and engines) and the trials; on all cores forking the workers, the set-up, the engines' copy for the "
+        "workers, the trials in this process and in the busiest worker (its first chunk's start after this "
+        "process's), its results' trip back, and the rest of the call after them"
+    )
     rows = []
     for name, hand in HANDS.items():
         table, targets, engine = _warm_engine(surface, symmetry, hand, trials, settings)
@@ -313,27 +347,32 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
             for result in engine.run(*(values[first : first + CHUNK] for values in targets))
         ]
         new_rate = len(table) / (time.perf_counter() - start)
-        rates, ratios = {}, {}
+        rates, ratios, parts = {}, {}, {}
         for batch in batches:
             repeated = pd.concat([table] * (-(-batch // len(table))), ignore_index=True).iloc[:batch]
+            timelines = defaultdict(list)
 
-            def timed(workers, holder):
+            def timed(workers, holder, kept):
                 def run():
+                    timeline = []
                     with holder():
-                        run_trials(surface, [hand], [(0, repeated)], settings, workers=workers)
+                        run_trials(surface, [hand], [(0, repeated)], settings, workers=workers, timeline=timeline)
+                    kept.append(timeline)
 
                 return run
 
             seconds = interleaved_seconds(
                 {
-                    "core": timed(1, one_core),
-                    "process": timed(1, contextlib.nullcontext),
-                    "all": timed(cores, contextlib.nullcontext),
+                    "core": timed(1, one_core, timelines["core"]),
+                    "process": timed(1, contextlib.nullcontext, timelines["process"]),
+                    "all": timed(cores, contextlib.nullcontext, timelines["all"]),
                 },
                 repeats,
             )
             for key, values in seconds.items():
                 rates[batch, key] = batch / float(np.median(values))
+                found = pd.DataFrame([timeline_parts(timeline) for timeline in timelines[key]])
+                parts[batch, key] = {name: round(float(value), 4) for name, value in found.median().items()}
             for key in ("core", "process"):
                 ratios[batch, key] = float(np.median(seconds[key] / seconds["all"]))
         outcomes = Counter(result.outcome for result in new)
@@ -350,6 +389,8 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
                     all_cores_per_s=round(rates[batch, "all"], 1),
                     ratio=round(ratios[batch, "core"], 2),
                     ratio_to_one_process=round(ratios[batch, "process"], 2),
+                    one_core_s=parts[batch, "core"],
+                    all_cores_s=parts[batch, "all"],
                 )
                 for batch in batches
             ],
@@ -367,6 +408,14 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
             + f"  {share}; "
             + ", ".join(f"{key} {value}" for key, value in sorted(outcomes.items()))
         )
+        for batch in batches:
+            one, every = parts[batch, "core"], parts[batch, "all"]
+            out(
+                f"    {batch:>5} trials, s: one core set-up {one['set-up']:.3f} trials {one['caller']:.3f} | "
+                f"{cores} cores start {every['start']:.3f} set-up {every['set-up']:.3f} ship {every['ship']:.3f} "
+                f"trials {every['caller']:.3f} here, {every['workers']:.3f} in a worker (from {every['lag']:+.3f}), its results {every['results']:.3f}, "
+                f"after {every['after']:.3f}"
+            )
         if not reference_trials:
             continue
         reference = ReferenceEngine(surface, hand, settings)

@@ -94,3 +94,38 @@ def test_interleaved_rounds_keep_a_ratio_exact_while_the_machine_slows_down():
     assert seconds["core"].tolist() == [2.0, 6.0, 18.0]
     assert seconds["all"].tolist() == [1.0, 3.0, 9.0]
     assert (seconds["core"] / seconds["all"]).tolist() == [2.0, 2.0, 2.0]
+
+
+def test_timeline_parts_split_a_two_process_call_into_its_steps():
+    from pipeline.bench import timeline_parts
+
+    timeline = [
+        ("start workers", 0, 10.0, 10.1),
+        ("set-up", 0, 10.1, 10.29),
+        ("ship", 0, 10.29, 10.3),
+        ("chunk", 0, 10.3, 11.0),
+        ("chunk", 1, 10.32, 10.6),  # the worker's two chunks: 0.28 + 0.5 s
+        ("results", 1, 10.6, 10.61),
+        ("chunk", 1, 10.62, 11.12),
+        ("results", 1, 11.12, 11.15),
+        ("call", 0, 10.0, 11.17),
+    ]
+    parts = timeline_parts(timeline)
+    expected = {
+        "start": 0.1,
+        "set-up": 0.19,
+        "ship": 0.01,
+        "caller": 0.7,
+        "workers": 0.78,
+        "lag": 0.02,
+        "results": 0.04,
+        "after": 0.02,
+    }
+    assert parts.keys() == expected.keys()
+    assert all(abs(parts[name] - seconds) < 1e-9 for name, seconds in expected.items())
+    # one process: no worker steps
+    alone = timeline_parts(
+        [("start workers", 0, 0.0, 0.0), ("set-up", 0, 0.0, 0.3), ("chunk", 0, 0.3, 1.0), ("call", 0, 0.0, 1.0)]
+    )
+    assert alone["ship"] == alone["workers"] == alone["lag"] == alone["results"] == alone["after"] == 0.0
+    assert alone["caller"] == 0.7

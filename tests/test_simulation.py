@@ -494,6 +494,29 @@ def test_run_trials_keeps_the_callers_objects_out_of_the_collectors_passes_while
     assert counts and min(counts) > 10_000 and _freeze_count() == 0
 
 
+def test_the_timeline_shows_each_chunk_where_it_ran_after_the_engines_it_needed():
+    table = baseline_candidates(cube(), HANDS["parallel_jaw"], 6, np.random.default_rng(4))
+    timeline = []
+    run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=2, timeline=timeline)
+    spans = {}
+    for step, process, start, end in timeline:
+        assert start <= end
+        spans.setdefault(step, []).append((process, start, end))
+    (call,) = spans["call"]
+    (forking,) = spans["start workers"]
+    (setup,) = spans["set-up"]
+    (ship,) = spans["ship"]
+    assert forking[1] == call[1] and forking[2] == setup[1] and setup[2] == ship[1]
+    # two chunks of three rows, one in each process, once the engines are built; the worker's
+    # begins once their copy is shipped to it (the clock is the machine's) and its results come
+    # back after it ends
+    assert sorted(process for process, _, _ in spans["chunk"]) == [0, 1]
+    assert all(start >= setup[2] and end <= call[2] for _, start, end in spans["chunk"])
+    (worker,) = [span for span in spans["chunk"] if span[0] == 1]
+    (back,) = spans["results"]
+    assert worker[1] >= ship[1] and back[0] == 1 and back[1] == worker[2] and back[2] <= call[2]
+
+
 def test_an_engines_process_and_a_pool_worker_keep_freed_memory(monkeypatch, tmp_path):
     from pipeline.trial import engine
 

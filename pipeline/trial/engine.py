@@ -569,11 +569,16 @@ def start_pool_worker(shipped):
 
 
 def run_chunk(hand_number, targets):
-    """Trials of ``targets`` ((P_g, P_d, P_o, preshape) tuples) with hand ``hand_number``."""
+    """Trials of ``targets`` ((P_g, P_d, P_o, preshape) tuples) with hand ``hand_number``: their
+    results, and when they started and ended (``time.perf_counter`` seconds, one clock for every
+    process of the machine on Linux)."""
+    start = time.perf_counter()
     if not targets:
-        return []
+        return [], start, start
     grasp, approach, orient, preshapes = zip(*targets)
-    return _WORKER["engines"][hand_number].run(np.array(grasp), np.array(approach), np.array(orient), list(preshapes))
+    engine = _WORKER["engines"][hand_number]
+    results = engine.run(np.array(grasp), np.array(approach), np.array(orient), list(preshapes))
+    return results, start, time.perf_counter()
 
 
 def stop_worker():

@@ -35,6 +35,7 @@ import os
 import pickle
 import tempfile
 import threading
+import time
 
 import numpy as np
 import pandas as pd
@@ -124,7 +125,7 @@ def chunks(lengths, workers=1):
 # the caller's objects (its libraries', its tables) out of the collector's full passes, which the
 # trials' own objects set off: each walked them all, 0.13-0.15 s in the bench's process
 @objects_frozen()
-def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
+def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, timeline=None):
     """One trial per row of each table (candidate columns).
 
     Parameters
@@ -142,11 +143,19 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
         Results do not depend on it.
     progress : callable(int, int), optional
         Called with the number of trials just finished and the total.
+    timeline : list, optional
+        Where the call's time went, appended as (step, process, start, end) spans in
+        ``time.perf_counter`` seconds (process 0 this one, 1 to ``workers - 1`` the workers):
+        ``start workers`` (their processes forked), ``set-up`` (the engines built), ``ship``
+        (their copy written for the workers), ``chunk`` (each chunk's trials, where they ran),
+        ``results`` (a worker's chunk ended to its results here), ``call`` (the whole call).
 
     Returns
     -------
     list (per table) of lists of TrialResult, in table order
     """
+    called = time.perf_counter()
+    spans = [] if timeline is None else timeline
     targets = [
         list(zip(vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), table.preshape))
         for _, table in tables
@@ -159,9 +168,12 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
         with lock:
             return left.popleft() if left else None
 
-    def finish(number, results):
+    def finish(number, process, results, start, end):
         with lock:
             done[number] = results
+            spans.append(("chunk", process, start, end))
+            if process:
+                spans.append(("results", process, end, time.perf_counter()))
             if progress:
                 progress(len(results), total)
 
@@ -196,10 +208,10 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
         for _ in range(helpers):
             shipped.put(copy)
 
-    def feed(number, future):  # keeps one worker process busy, chunk after chunk
+    def feed(number, future, process):  # keeps one worker process busy, chunk after chunk
         try:
             while True:
-                finish(number, future.result())
+                finish(number, process, *future.result())
                 if (number := take()) is None:
                     return
                 future = executor.submit(run_chunk, *chunk_of(number))
@@ -209,25 +221,29 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
                 left.clear()
 
     try:
-        for _ in range(helpers):
+        for process in range(1, helpers + 1):
             # each worker's process starts from this thread before it works: started from another
             # thread while this one computes, each step of the start would wait for the interpreter
             # lock (about 0.5 s in all on the duck, the first chunk's time here)
             number = take()
-            feeders.append(
-                threading.Thread(target=feed, args=(number, executor.submit(run_chunk, *chunk_of(number))), daemon=True)
-            )
+            future = executor.submit(run_chunk, *chunk_of(number))
+            feeders.append(threading.Thread(target=feed, args=(number, future, process), daemon=True))
             feeders[-1].start()
+        forked = time.perf_counter()
+        spans.append(("start workers", 0, called, forked))
         # the object's distance grid is most of an engine's set-up: built once, here
         mesh = object_mesh(surface, settings) if used else None
         engines = {number: GraspEngine(surface, hands[number], settings, mesh=mesh) for number in used}
+        built = time.perf_counter()
+        spans.append(("set-up", 0, forked, built))
         if helpers > 0:
             mesh.threads = 1  # a core per process: open3d's threads would only contend for them
             ship(engines)
+            spans.append(("ship", 0, built, time.perf_counter()))
         start_worker(engines)
         try:
             while (number := take()) is not None:
-                finish(number, run_chunk(*chunk_of(number)))
+                finish(number, 0, *run_chunk(*chunk_of(number)))
         except BaseException:
             with lock:
                 left.clear()
@@ -253,6 +269,7 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None):
     for (table, rows), found in zip(parts, done):
         for row, result in zip(rows, found):
             results[table][row] = result
+    spans.append(("call", 0, called, time.perf_counter()))
     return results
 
 
