@@ -212,11 +212,18 @@ def trial_bench_chain():
     return artefacts, len(mesh.faces)
 
 
+def drawn_first(candidates, trials):
+    """The rows of ``candidates``: ``trials`` of them drawn at random first, then the others in
+    a random order (both seeded), renumbered."""
+    drawn = candidates.sample(min(trials, len(candidates)), random_state=0)
+    others = candidates.drop(index=drawn.index).sample(frac=1, random_state=0)
+    return pd.concat([drawn, others], ignore_index=True)
+
+
 def _warm_engine(surface, symmetry, hand, trials, settings):
-    """``trials`` random MAT candidates of ``hand`` (seeded), their targets (grasp, approach,
-    orient, preshapes) and an engine that has run two of them."""
-    table = generate(symmetry, hand)
-    table = table.sample(min(trials, len(table)), random_state=0).reset_index(drop=True)
+    """``trials`` random MAT candidates of ``hand`` (seeded: the first of :func:`drawn_first`),
+    their targets (grasp, approach, orient, preshapes) and an engine that has run two of them."""
+    table = drawn_first(generate(symmetry, hand), trials).iloc[:trials]
     targets = (vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), list(table.preshape))
     engine = GraspEngine(surface, hand, settings)
     # numba loads its compiled kernels on their first call (about 0.3 s a process, once): part
@@ -319,8 +326,8 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     out(
         f"engine: one core, the engine set up. run_trials (the engine's set-up included; {repeats} rounds, "
         "the three ways in turn; rates: medians; ratios: the median of the rounds') of "
-        f"{' and '.join(map(str, batches))} trials (the candidates repeated; a default simulate stage has "
-        "400-3,000): one core (every thread of the process held to one CPU), one process (its open3d "
+        f"{' and '.join(map(str, batches))} trials (distinct candidates of the hand, the engine's first, repeated "
+        "only past all the duck has; a default simulate stage has 400-3,000): one core (every thread of the process held to one CPU), one process (its open3d "
         "threads on every core) and all cores; ratio: all cores / one core (/ one process)"
     )
     out(
@@ -348,8 +355,12 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
         ]
         new_rate = len(table) / (time.perf_counter() - start)
         rates, ratios, parts = {}, {}, {}
+        # a batch of distinct candidates, as a simulate stage's: the engine's first, then the
+        # object's others (each process's chunk a sample of them; 512 candidates repeated would
+        # give each the same 256 four times, their costs never averaging out)
+        every = drawn_first(generate(symmetry, hand), trials)
         for batch in batches:
-            repeated = pd.concat([table] * (-(-batch // len(table))), ignore_index=True).iloc[:batch]
+            repeated = pd.concat([every] * (-(-batch // len(every))), ignore_index=True).iloc[:batch]
             timelines = defaultdict(list)
 
             def timed(workers, holder, kept):

@@ -129,3 +129,17 @@ def test_timeline_parts_split_a_two_process_call_into_its_steps():
     )
     assert alone["ship"] == alone["workers"] == alone["lag"] == alone["results"] == alone["after"] == 0.0
     assert alone["caller"] == 0.7
+
+
+def test_the_trial_bench_draws_its_sample_first_then_every_other_candidate_once():
+    import pandas as pd
+
+    from pipeline.bench import drawn_first
+
+    candidates = pd.DataFrame({"id": range(100, 130)}, index=range(50, 80))
+    ordered = drawn_first(candidates, 8)
+    # the engine's sample first, as drawn before; then the 22 others, each once
+    assert ordered.id[:8].tolist() == candidates.sample(8, random_state=0).id.tolist()
+    assert sorted(ordered.id) == list(range(100, 130)) and ordered.index.tolist() == list(range(30))
+    assert ordered.id.tolist() == drawn_first(candidates, 8).id.tolist()  # seeded
+    assert drawn_first(candidates, 50).id.tolist() == candidates.sample(30, random_state=0).id.tolist()
