@@ -301,6 +301,14 @@ def timeline_parts(timeline):
     }
 
 
+def free_workers_ratio(one_core, all_cores, cores):
+    """The ratio of a :func:`run_trials` call on ``cores`` cores to one on one core had its
+    workers cost nothing (no fork, no copy, no trip back, each process's share of the trials
+    taking its share of one core's time), from their :func:`timeline_parts`: one core's set-up
+    and trials over all cores' set-up and one core's trials shared."""
+    return (one_core["set-up"] + one_core["caller"]) / (all_cores["set-up"] + one_core["caller"] / cores)
+
+
 def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     """Grasp trials per second per hand on a ~17k-triangle duck, the engine
     (:mod:`pipeline.trial.engine`, batched) on random MAT candidates, one core; where its time
@@ -341,7 +349,8 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
         "  then per batch, where run_trials' time went (medians of the rounds): on one core the set-up (the object "
         "mesh and engines) and the trials; on all cores forking the workers, the set-up, the engines' copy for the "
         "workers, the trials in this process and in the busiest worker (its first chunk's start after this "
-        "process's), its results' trip back, and the rest of the call after them"
+        "process's), its results' trip back, and the rest of the call after them; the ratio had the workers cost "
+        "nothing (these set-ups, one core's trials shared by the cores)"
     )
     rows = []
     for name, hand in HANDS.items():
@@ -402,6 +411,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
                     ratio_to_one_process=round(ratios[batch, "process"], 2),
                     one_core_s=parts[batch, "core"],
                     all_cores_s=parts[batch, "all"],
+                    free_workers_ratio=round(free_workers_ratio(parts[batch, "core"], parts[batch, "all"], cores), 2),
                 )
                 for batch in batches
             ],
@@ -425,7 +435,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
                 f"    {batch:>5} trials, s: one core set-up {one['set-up']:.3f} trials {one['caller']:.3f} | "
                 f"{cores} cores start {every['start']:.3f} set-up {every['set-up']:.3f} ship {every['ship']:.3f} "
                 f"trials {every['caller']:.3f} here, {every['workers']:.3f} in a worker (from {every['lag']:+.3f}), its results {every['results']:.3f}, "
-                f"after {every['after']:.3f}"
+                f"after {every['after']:.3f}; ratio with free workers {free_workers_ratio(one, every, cores):.2f}"
             )
         if not reference_trials:
             continue

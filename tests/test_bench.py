@@ -143,3 +143,13 @@ def test_the_trial_bench_draws_its_sample_first_then_every_other_candidate_once(
     assert sorted(ordered.id) == list(range(100, 130)) and ordered.index.tolist() == list(range(30))
     assert ordered.id.tolist() == drawn_first(candidates, 8).id.tolist()  # seeded
     assert drawn_first(candidates, 50).id.tolist() == candidates.sample(30, random_state=0).id.tolist()
+
+
+def test_the_ratio_with_free_workers_shares_one_cores_trials_after_the_all_core_set_up():
+    from pipeline.bench import free_workers_ratio
+
+    # one core: 0.3 s of set-up and 0.6 s of trials; two cores: the set-up in 0.15 s, then
+    # 0.3 s of trials each
+    assert abs(free_workers_ratio({"set-up": 0.3, "caller": 0.6}, {"set-up": 0.15}, 2) - 0.9 / 0.45) < 1e-12
+    # a set-up that no core shares bounds it below the core count
+    assert abs(free_workers_ratio({"set-up": 0.3, "caller": 0.6}, {"set-up": 0.3}, 2) - 0.9 / 0.6) < 1e-12
