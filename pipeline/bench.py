@@ -283,21 +283,26 @@ def timeline_parts(timeline):
     spans = defaultdict(list)
     for step, process, start, end in timeline:
         spans[step, process].append((start, end))
-    busy = lambda step, process: sum(end - start for start, end in spans[step, process])  # noqa: E731
-    workers = sorted({process for step, process in spans if step == "chunk" and process})
-    busiest = max(workers, key=lambda process: busy("chunk", process), default=None)
     (call,) = spans["call", 0]
+    last = max(end for (step, _), found in spans.items() if step != "call" for _, end in found)
+
+    def busy(step, process):
+        return sum(end - start for start, end in spans[step, process])
+
+    def first(process):
+        return min(start for start, _ in spans["chunk", process])
+
+    workers = {process for step, process in spans if step == "chunk" and process}
+    busiest = max(workers, key=lambda process: busy("chunk", process), default=None)  # None: no steps
     return {
         "start": busy("start workers", 0),
         "set-up": busy("set-up", 0),
         "ship": busy("ship", 0),
         "caller": busy("chunk", 0),
-        "workers": busy("chunk", busiest) if workers else 0.0,
-        "lag": min(start for start, _ in spans["chunk", busiest]) - min(start for start, _ in spans["chunk", 0])
-        if workers
-        else 0.0,
-        "results": busy("results", busiest) if workers else 0.0,
-        "after": call[1] - max(end for (step, _), found in spans.items() if step != "call" for _, end in found),
+        "workers": busy("chunk", busiest),
+        "lag": first(busiest) - first(0) if workers else 0.0,
+        "results": busy("results", busiest),
+        "after": call[1] - last,
     }
 
 
@@ -334,9 +339,10 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     out(
         f"engine: one core, the engine set up. run_trials (the engine's set-up included; {repeats} rounds, "
         "the three ways in turn; rates: medians; ratios: the median of the rounds') of "
-        f"{' and '.join(map(str, batches))} trials (distinct candidates of the hand, the engine's first, repeated "
-        "only past all the duck has; a default simulate stage has 400-3,000): one core (every thread of the process held to one CPU), one process (its open3d "
-        "threads on every core) and all cores; ratio: all cores / one core (/ one process)"
+        f"{' and '.join(map(str, batches))} trials (distinct candidates of the hand, the engine's first, "
+        "repeated only past all the duck has; a default simulate stage has 400-3,000): one core (every "
+        "thread of the process held to one CPU), one process (its open3d threads on every core) and all "
+        "cores; ratio: all cores / one core (/ one process)"
     )
     out(
         f"{'hand':13} {'engine':>7}"
@@ -367,9 +373,9 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
         # a batch of distinct candidates, as a simulate stage's: the engine's first, then the
         # object's others (each process's chunk a sample of them; 512 candidates repeated would
         # give each the same 256 four times, their costs never averaging out)
-        every = drawn_first(generate(symmetry, hand), trials)
+        distinct = drawn_first(generate(symmetry, hand), trials)
         for batch in batches:
-            repeated = pd.concat([every] * (-(-batch // len(every))), ignore_index=True).iloc[:batch]
+            repeated = pd.concat([distinct] * (-(-batch // len(distinct))), ignore_index=True).iloc[:batch]
             timelines = defaultdict(list)
 
             def timed(workers, holder, kept):
@@ -434,8 +440,9 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
             out(
                 f"    {batch:>5} trials, s: one core set-up {one['set-up']:.3f} trials {one['caller']:.3f} | "
                 f"{cores} cores start {every['start']:.3f} set-up {every['set-up']:.3f} ship {every['ship']:.3f} "
-                f"trials {every['caller']:.3f} here, {every['workers']:.3f} in a worker (from {every['lag']:+.3f}), its results {every['results']:.3f}, "
-                f"after {every['after']:.3f}; ratio with free workers {free_workers_ratio(one, every, cores):.2f}"
+                f"trials {every['caller']:.3f} here, {every['workers']:.3f} in a worker (from {every['lag']:+.3f}), "
+                f"its results {every['results']:.3f}, after {every['after']:.3f}; "
+                f"ratio with free workers {free_workers_ratio(one, every, cores):.2f}"
             )
         if not reference_trials:
             continue
