@@ -1,4 +1,5 @@
-"""The malloc limits the trial engine sets: freed temporaries stay in the heap for the next pass."""
+"""How the trial processes manage memory: the malloc limits the trial engine sets (freed temporaries
+stay in the heap for the next pass) and the objects kept out of the garbage collector's passes."""
 
 import gc
 import subprocess
