@@ -229,6 +229,48 @@ def test_results_do_not_depend_on_the_batch():
         )
 
 
+def test_measuring_in_blocks_of_link_points_changes_no_trial(monkeypatch):
+    """The measure runs its pairs through the exact queries in blocks of about
+    ``BLOCK_POINTS`` link points, to bound its memory. A pair's distance and touches are its
+    own, so Barrett trials on a cylinder measured one pair a block are the trials measured in
+    one block, bit for bit: outcomes, quality, joints, closing steps and every contact."""
+    from pipeline.trial import proximity
+
+    cylinder = surface("primitive:cylinder", radius=0.025, height=0.12)
+    count = 16
+    rng = np.random.default_rng(8)
+    grasp = rng.normal(0.0, 0.01, (count, 3))
+    approach = np.column_stack([np.cos(np.arange(count)), np.sin(np.arange(count)), 0.2 * rng.normal(size=count)])
+    approach /= np.linalg.norm(approach, axis=1, keepdims=True)
+    orient = np.cross(approach, [0.0, 1.0, 0.0])
+    engine = GraspEngine(cylinder, HANDS["barrett"])
+    blocks = []
+    measure_close = proximity._measure_close
+
+    def counted(*args):
+        blocks.append(len(args[5]))  # the pairs of this block
+        return measure_close(*args)
+
+    monkeypatch.setattr(proximity, "_measure_close", counted)
+    whole = engine.run(grasp, approach, orient, [None] * count)
+    assert max(blocks) > 1  # some measures hold several pairs
+    blocks.clear()
+    monkeypatch.setattr(proximity, "BLOCK_POINTS", 1)
+    split = engine.run(grasp, approach, orient, [None] * count)
+    assert set(blocks) == {1}
+    assert sum(result.outcome in ("force_closure", "no_force_closure") for result in whole) >= 8
+    for one, other in zip(whole, split):
+        assert (one.outcome, one.epsilon, one.joint_positions, one.close_steps, one.touched) == (
+            other.outcome,
+            other.epsilon,
+            other.joint_positions,
+            other.close_steps,
+            other.touched,
+        )
+        for name in ("contact_points", "contact_normals", "contact_links"):
+            np.testing.assert_array_equal(getattr(one, name), getattr(other, name))
+
+
 def test_a_point_cloud_is_refused_before_any_trial(tmp_path):
     mesh = surface("primitive:box", extents=(0.04, 0.04, 0.04))
     cloud = dataclasses.replace(mesh, vertices=np.zeros((0, 3)), faces=np.zeros((0, 3), np.int64), source="scan.ply")

@@ -77,55 +77,83 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
     distance[has] = np.maximum(bound[has], 0.0)
     distance[close] = np.inf
     touches = ([], [], [])
-    if len(close):
-        pair, cover, centres, clearance = _covers(mesh, model, flat, slot, close)
-        keep = -np.inf if tolerance is None else tolerance
-        # the mesh-to-link side first: its cheap, exact gaps let the link points below skip the
-        # exact queries (the costly part) of every point that cannot lower its link's distance
-        feature_pair, vertex, normal = _vertex_side(
-            features, model, flat, slot, pair, cover, centres, clearance, near, distance, floor=0.0, keep=keep
-        )
-        # link points: those of cover spheres within reach; the others are farther than
-        # ``near``, bounded below by their sphere
-        far = clearance - model.cover_reach[cover] > near
-        _minimum_at(distance, pair[far], clearance[far] - model.cover_reach[cover[far]])
-        point_pair, point, world = _cover_points(model, flat, slot, pair[~far], cover[~far])
-        lower = mesh.clearance(world)
-        # a point's exact distance is at least its bound: past its link's distance so far (and
-        # the touch tolerance) it changes neither the distance nor the touches
-        exact = lower <= np.minimum(near, np.maximum(keep, distance[point_pair] + PRUNE_SLACK_M))
-        found = mesh.closest(world[exact])
-        lower[exact] = found.distances
-        _minimum_at(distance, point_pair, lower)
-        if tolerance is not None:
-            hit = found.distances <= tolerance
-            normals = found.normals[hit]
-            # on an object edge or corner the contact is the object's feature against the link's
-            # face (the mesh-to-link side's normal), not against one of the faces meeting there;
-            # on a smooth surface's facet seams, the surface's normal
-            border = mesh.on_border(found.at(hit))
-            on_edge = np.flatnonzero(exact)[hit][border]
-            link_face = _link_face_normal(
-                model,
-                flat,
-                slot[point_pair[on_edge]],
-                point[on_edge],
-                world[on_edge] - found.points[hit][border],
-                normals[border],
-            )
-            normals[border] = mesh.clamp_on_border(link_face, found.at(hit).at(border))
-            touches[0].append(point_pair[exact][hit])
-            touches[1].append(found.points[hit])
-            touches[2].append(normals)
-            touches[0].append(feature_pair)
-            touches[1].append(features.points[vertex])
-            touches[2].append(features.clamp(-normal, vertex))
+    for block in _blocks(model, links, close):
+        _measure_close(mesh, model, features, flat, slot, block, near, tolerance, distance, touches)
     if tolerance is None:
         return distance
     joined = [
         np.concatenate(part) if part else np.zeros((0,) + shape) for part, shape in zip(touches, ((), (3,), (3,)))
     ]
     return distance, Touches(joined[0].astype(np.int64), *joined[1:])
+
+
+#: link points measured at once: a measure's pairs go through :func:`_measure_close` in runs of
+#: about this many points of their links (a pair with more alone), so that its temporaries stay
+#: near 20 MB however many hands it measures. In one run, 1,024 closed franka hands took 131 MB,
+#: which a fresh trial worker's first chunk had to fault in from the system
+BLOCK_POINTS = 1 << 18
+
+
+def _blocks(model, links, close):
+    """The pairs ``close`` (indices into ``links``) in consecutive runs of about
+    :data:`BLOCK_POINTS` link points."""
+    if not len(close):
+        return []
+    points = np.diff(_starts(model.point_link, len(model.links)))[links[close]]
+    total = np.cumsum(points)
+    if total[-1] <= BLOCK_POINTS:
+        return [close]
+    cuts = np.searchsorted(total, np.arange(BLOCK_POINTS, total[-1], BLOCK_POINTS), side="right")
+    return [block for block in np.split(close, cuts) if len(block)]
+
+
+def _measure_close(mesh, model, features, flat, slot, close, near, tolerance, distance, touches):
+    """The exact part of :func:`measure` for the pairs ``close``, each nearer than ``near`` by its
+    bound: lowers ``distance`` (one entry per pair, in place) and appends their touches within
+    ``tolerance`` (if given) to the lists ``touches``. A pair's answer depends on its own link
+    and pose alone, so any split of the pairs gives the same."""
+    pair, cover, centres, clearance = _covers(mesh, model, flat, slot, close)
+    keep = -np.inf if tolerance is None else tolerance
+    # the mesh-to-link side first: its cheap, exact gaps let the link points below skip the
+    # exact queries (the costly part) of every point that cannot lower its link's distance
+    feature_pair, vertex, normal = _vertex_side(
+        features, model, flat, slot, pair, cover, centres, clearance, near, distance, floor=0.0, keep=keep
+    )
+    # link points: those of cover spheres within reach; the others are farther than
+    # ``near``, bounded below by their sphere
+    far = clearance - model.cover_reach[cover] > near
+    _minimum_at(distance, pair[far], clearance[far] - model.cover_reach[cover[far]])
+    point_pair, point, world = _cover_points(model, flat, slot, pair[~far], cover[~far])
+    lower = mesh.clearance(world)
+    # a point's exact distance is at least its bound: past its link's distance so far (and
+    # the touch tolerance) it changes neither the distance nor the touches
+    exact = lower <= np.minimum(near, np.maximum(keep, distance[point_pair] + PRUNE_SLACK_M))
+    found = mesh.closest(world[exact])
+    lower[exact] = found.distances
+    _minimum_at(distance, point_pair, lower)
+    if tolerance is not None:
+        hit = found.distances <= tolerance
+        normals = found.normals[hit]
+        # on an object edge or corner the contact is the object's feature against the link's
+        # face (the mesh-to-link side's normal), not against one of the faces meeting there;
+        # on a smooth surface's facet seams, the surface's normal
+        border = mesh.on_border(found.at(hit))
+        on_edge = np.flatnonzero(exact)[hit][border]
+        link_face = _link_face_normal(
+            model,
+            flat,
+            slot[point_pair[on_edge]],
+            point[on_edge],
+            world[on_edge] - found.points[hit][border],
+            normals[border],
+        )
+        normals[border] = mesh.clamp_on_border(link_face, found.at(hit).at(border))
+        touches[0].append(point_pair[exact][hit])
+        touches[1].append(found.points[hit])
+        touches[2].append(normals)
+        touches[0].append(feature_pair)
+        touches[1].append(features.points[vertex])
+        touches[2].append(features.clamp(-normal, vertex))
 
 
 def _covers(mesh, model, flat, slot, close):
