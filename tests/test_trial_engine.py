@@ -229,11 +229,12 @@ def test_results_do_not_depend_on_the_batch():
         )
 
 
-def test_measuring_in_blocks_of_link_points_changes_no_trial(monkeypatch):
-    """The measure runs its pairs through the exact queries in blocks of about
-    ``BLOCK_POINTS`` link points, to bound its memory. A pair's distance and touches are its
-    own, so Barrett trials on a cylinder measured one pair a block are the trials measured in
-    one block, bit for bit: outcomes, quality, joints, closing steps and every contact."""
+def test_measures_and_collision_tests_in_blocks_of_link_points_change_no_trial(monkeypatch):
+    """The measure runs its pairs, and the collision test its hands, through the exact queries
+    in blocks of about ``BLOCK_POINTS`` link points, to bound their memory. A pair's distance
+    and touches are its own, and a hand's collision too, so Barrett trials on a cylinder run one
+    pair (one hand) a block are the trials run in one block, bit for bit: outcomes, quality,
+    joints, closing steps and every contact."""
     from pipeline.trial import proximity
 
     cylinder = surface("primitive:cylinder", radius=0.025, height=0.12)
@@ -244,20 +245,26 @@ def test_measuring_in_blocks_of_link_points_changes_no_trial(monkeypatch):
     approach /= np.linalg.norm(approach, axis=1, keepdims=True)
     orient = np.cross(approach, [0.0, 1.0, 0.0])
     engine = GraspEngine(cylinder, HANDS["barrett"])
-    blocks = []
-    measure_close = proximity._measure_close
+    blocks, hands = [], []
+    measure_close, points_inside = proximity._measure_close, proximity._points_inside
 
-    def counted(*args):
+    def measured(*args):
         blocks.append(len(args[5]))  # the pairs of this block
         return measure_close(*args)
 
-    monkeypatch.setattr(proximity, "_measure_close", counted)
+    def tested(mesh, model, flat, rows, links, unsure, *rest):
+        hands.append(len(np.unique(rows[unsure])))  # the hands of this block
+        return points_inside(mesh, model, flat, rows, links, unsure, *rest)
+
+    monkeypatch.setattr(proximity, "_measure_close", measured)
+    monkeypatch.setattr(proximity, "_points_inside", tested)
     whole = engine.run(grasp, approach, orient, [None] * count)
-    assert max(blocks) > 1  # some measures hold several pairs
+    assert max(blocks) > 1 and max(hands) > 1  # some blocks hold several pairs, several hands
     blocks.clear()
+    hands.clear()
     monkeypatch.setattr(proximity, "BLOCK_POINTS", 1)
     split = engine.run(grasp, approach, orient, [None] * count)
-    assert set(blocks) == {1}
+    assert set(blocks) == {1} and set(hands) == {1}
     assert sum(result.outcome in ("force_closure", "no_force_closure") for result in whole) >= 8
     for one, other in zip(whole, split):
         assert (one.outcome, one.epsilon, one.joint_positions, one.close_steps, one.touched) == (
@@ -269,6 +276,19 @@ def test_measuring_in_blocks_of_link_points_changes_no_trial(monkeypatch):
         )
         for name in ("contact_points", "contact_normals", "contact_links"):
             np.testing.assert_array_equal(getattr(one, name), getattr(other, name))
+
+
+def test_blocks_of_link_points_cut_between_owners_only(monkeypatch):
+    """Four items of 3 link points, blocks of about 5: a block starts at the first owner whose
+    points before it reach the next multiple of 5, and an owner's items stay together."""
+    from pipeline.trial import proximity
+
+    monkeypatch.setattr(proximity, "BLOCK_POINTS", 5)
+    three = np.full(4, 3)  # 0, 3, 6 and 9 points before each
+    assert list(proximity._cuts(three, np.arange(4))) == [2]
+    assert list(proximity._cuts(three, np.array([0, 1, 1, 2]))) == [3]  # not between the two of owner 1
+    assert list(proximity._cuts(three, np.zeros(4, int))) == []  # one owner: one block
+    assert list(proximity._cuts(np.full(2, 2), np.arange(2))) == []  # 4 points fit in one
 
 
 def test_a_point_cloud_is_refused_before_any_trial(tmp_path):

@@ -77,8 +77,10 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
     distance[has] = np.maximum(bound[has], 0.0)
     distance[close] = np.inf
     touches = ([], [], [])
-    for block in _blocks(model, links, close):
-        _measure_close(mesh, model, features, flat, slot, block, near, tolerance, distance, touches)
+    if len(close):
+        cuts = _cuts(np.diff(_starts(model.point_link, count))[links[close]], close)
+        for block in np.split(close, cuts) if len(cuts) else [close]:
+            _measure_close(mesh, model, features, flat, slot, block, near, tolerance, distance, touches)
     if tolerance is None:
         return distance
     joined = [
@@ -87,24 +89,24 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
     return distance, Touches(joined[0].astype(np.int64), *joined[1:])
 
 
-#: link points measured at once: a measure's pairs go through :func:`_measure_close` in runs of
-#: about this many points of their links (a pair with more alone), so that its temporaries stay
-#: near 20 MB however many hands it measures. In one run, 1,024 closed franka hands took 131 MB,
-#: which a fresh trial worker's first chunk had to fault in from the system
+#: link points handled at once: a measure's pairs, and a collision test's hands, go through
+#: their exact queries in runs of about this many points of their links (one pair or hand with
+#: more alone), so that the temporaries stay near 20 MB however many hands they take. In one
+#: run, a measure of 1,024 closed franka hands took 131 MB in one, which a fresh trial worker's
+#: first chunk had to fault in from the system
 BLOCK_POINTS = 1 << 18
 
 
-def _blocks(model, links, close):
-    """The pairs ``close`` (indices into ``links``) in consecutive runs of about
-    :data:`BLOCK_POINTS` link points."""
-    if not len(close):
-        return []
-    points = np.diff(_starts(model.point_link, len(model.links)))[links[close]]
+def _cuts(points, owner):
+    """Where to cut consecutive items with ``points`` (k,) link points each into runs of about
+    :data:`BLOCK_POINTS` points, never between two items of one ``owner`` (k,), sorted: the
+    positions for ``np.split``, none when all fit in one run."""
     total = np.cumsum(points)
-    if total[-1] <= BLOCK_POINTS:
-        return [close]
-    cuts = np.searchsorted(total, np.arange(BLOCK_POINTS, total[-1], BLOCK_POINTS), side="right")
-    return [block for block in np.split(close, cuts) if len(block)]
+    if not len(total) or total[-1] <= BLOCK_POINTS:
+        return []
+    first = np.flatnonzero(np.diff(owner, prepend=owner[0] - 1))  # each owner's first item
+    run = (total - points)[first] // BLOCK_POINTS  # the run each owner starts in
+    return first[1:][np.diff(run) > 0]
 
 
 def _measure_close(mesh, model, features, flat, slot, close, near, tolerance, distance, touches):
@@ -426,6 +428,29 @@ def _minimum_at(out, index, values):
             out[index[position]] = values[position]
 
 
+def _points_inside(mesh, model, flat, rows, links, unsure, starts, along, hit, deepest):
+    """The link points of the pairs ``unsure`` inside the mesh, for :func:`collides`: marks their
+    hands (``rows``) in ``hit`` and lowers each one's ``deepest`` (in place). A hand's answer
+    depends on its own pairs alone, all of them in ``unsure`` or none."""
+    owner, point = expand_ranges(starts[links[unsure]], np.diff(starts)[links[unsure]])
+    pair = unsure[owner]
+    world = transform(flat, pair, model.points[point])
+    low, high = mesh.bounds(world)
+    inside = high < 0
+    _minimum_at(deepest, rows[pair[inside]], high[inside])
+    hit[rows[pair[inside]]] = True
+    # the exact (ray parity) test only where the grid is unsure and the hand not yet known to hit
+    check = np.flatnonzero((low <= 0) & ~inside & ~hit[rows[pair]])
+    inside[check] = mesh.inside(world[check])
+    hit[rows[pair[inside]]] = True
+    if along is not None and inside.any():
+        # a point inside stays inside until its ray along the move leaves the mesh (a margin
+        # for the casts' float32)
+        owner = rows[pair[inside]]
+        exit_m = mesh.exit_distance(world[inside], along[owner]) - 1e-6
+        _minimum_at(deepest, owner, -exit_m)
+
+
 def collides(mesh, model, poses, *, overlap=None, along=None):
     """The hand at each of the (n, L, 4, 4) link poses overlaps the object: a link's surface
     point inside the mesh, or a mesh vertex deeper than ``overlap`` (m) inside a link's convex
@@ -456,23 +481,9 @@ def collides(mesh, model, poses, *, overlap=None, along=None):
     # every link point of those links (a sphere-level cull costs more than it saves here: a
     # hand being retreated is close to the surface)
     starts = _starts(model.point_link, count)
-    owner, point = expand_ranges(starts[links[unsure]], np.diff(starts)[links[unsure]])
-    pair = unsure[owner]
-    world = transform(flat, pair, model.points[point])
-    low, high = mesh.bounds(world)
-    inside = high < 0
-    _minimum_at(deepest, rows[pair[inside]], high[inside])
-    hit[rows[pair[inside]]] = True
-    # the exact (ray parity) test only where the grid is unsure and the hand not yet known to hit
-    check = np.flatnonzero((low <= 0) & ~inside & ~hit[rows[pair]])
-    inside[check] = mesh.inside(world[check])
-    hit[rows[pair[inside]]] = True
-    if along is not None and inside.any():
-        # a point inside stays inside until its ray along the move leaves the mesh (a margin
-        # for the casts' float32)
-        owner = rows[pair[inside]]
-        exit_m = mesh.exit_distance(world[inside], along[owner]) - 1e-6
-        _minimum_at(deepest, owner, -exit_m)
+    cuts = _cuts(np.diff(starts)[links[unsure]], rows[unsure])
+    for block in np.split(unsure, cuts) if len(cuts) else [unsure]:
+        _points_inside(mesh, model, flat, rows, links, block, starts, along, hit, deepest)
     unsure = unsure[~hit[rows[unsure]]]  # the vertex test only where no link point is inside
     deepest_feature = np.full(len(slot), np.inf)
     covers = _covers(mesh, model, flat, slot, unsure)
