@@ -229,12 +229,12 @@ def test_results_do_not_depend_on_the_batch():
         )
 
 
-def test_measures_and_collision_tests_in_blocks_of_link_points_change_no_trial(monkeypatch):
-    """The measure runs its pairs, and the collision test its hands, through the exact queries
-    in blocks of about ``BLOCK_POINTS`` link points, to bound their memory. A pair's distance
-    and touches are its own, and a hand's collision too, so Barrett trials on a cylinder run one
-    pair (one hand) a block are the trials run in one block, bit for bit: outcomes, quality,
-    joints, closing steps and every contact."""
+def test_measures_and_collision_tests_in_blocks_change_no_trial(monkeypatch):
+    """The measure runs its pairs through the exact queries in blocks of about ``BLOCK_COVERS``
+    cover spheres, the collision test its hands in blocks of about ``BLOCK_POINTS`` link points,
+    to bound their memory. A pair's distance and touches are its own, and a hand's collision
+    too, so Barrett trials on a cylinder run one pair (one hand) a block are the trials run in
+    one block, bit for bit: outcomes, quality, joints, closing steps and every contact."""
     from pipeline.trial import proximity
 
     cylinder = surface("primitive:cylinder", radius=0.025, height=0.12)
@@ -262,6 +262,7 @@ def test_measures_and_collision_tests_in_blocks_of_link_points_change_no_trial(m
     assert max(blocks) > 1 and max(hands) > 1  # some blocks hold several pairs, several hands
     blocks.clear()
     hands.clear()
+    monkeypatch.setattr(proximity, "BLOCK_COVERS", 1)
     monkeypatch.setattr(proximity, "BLOCK_POINTS", 1)
     split = engine.run(grasp, approach, orient, [None] * count)
     assert set(blocks) == {1} and set(hands) == {1}
@@ -278,17 +279,18 @@ def test_measures_and_collision_tests_in_blocks_of_link_points_change_no_trial(m
             np.testing.assert_array_equal(getattr(one, name), getattr(other, name))
 
 
-def test_blocks_of_link_points_cut_between_owners_only(monkeypatch):
-    """Four items of 3 link points, blocks of about 5: a block starts at the first owner whose
-    points before it reach the next multiple of 5, and an owner's items stay together."""
-    from pipeline.trial import proximity
+def test_runs_of_a_block_part_owners_only_where_their_sizes_pass_a_multiple_of_it():
+    """Four items of size 3, runs of about 5: a run starts at the first owner whose sizes before
+    it reach the next multiple of 5, and an owner's items stay together."""
+    from pipeline.trial.proximity import _runs
 
-    monkeypatch.setattr(proximity, "BLOCK_POINTS", 5)
-    three = np.full(4, 3)  # 0, 3, 6 and 9 points before each
-    assert list(proximity._cuts(three, np.arange(4))) == [2]
-    assert list(proximity._cuts(three, np.array([0, 1, 1, 2]))) == [3]  # not between the two of owner 1
-    assert list(proximity._cuts(three, np.zeros(4, int))) == []  # one owner: one block
-    assert list(proximity._cuts(np.full(2, 2), np.arange(2))) == []  # 4 points fit in one
+    def runs(sizes, owner):
+        return [list(run) for run in _runs(np.arange(len(sizes)), np.asarray(sizes), np.asarray(owner), 5)]
+
+    assert runs([3, 3, 3, 3], [0, 1, 2, 3]) == [[0, 1], [2, 3]]  # 0 and 3 before, then 6 and 9
+    assert runs([3, 3, 3, 3], [0, 1, 1, 2]) == [[0, 1, 2], [3]]  # not between the two of owner 1
+    assert runs([3, 3, 3, 3], [0, 0, 0, 0]) == [[0, 1, 2, 3]]  # one owner: one run
+    assert runs([2, 2], [0, 1]) == [[0, 1]]  # 4 fit in one
 
 
 def test_a_point_cloud_is_refused_before_any_trial(tmp_path):

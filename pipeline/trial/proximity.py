@@ -77,10 +77,12 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
     distance[has] = np.maximum(bound[has], 0.0)
     distance[close] = np.inf
     touches = ([], [], [])
-    if len(close):
-        cuts = _cuts(np.diff(_starts(model.point_link, count))[links[close]], close)
-        for block in np.split(close, cuts) if len(cuts) else [close]:
-            _measure_close(mesh, model, features, flat, slot, block, near, tolerance, distance, touches)
+    runs = [close] if len(close) * len(model.cover_radius) <= BLOCK_COVERS else None  # the usual few pairs
+    if runs is None:
+        covers = np.diff(_starts(model.piece_link[model.cover_piece], count))
+        runs = _runs(close, covers[links[close]], close, BLOCK_COVERS)
+    for run in runs if len(close) else []:
+        _measure_close(mesh, model, features, flat, slot, run, near, tolerance, distance, touches)
     if tolerance is None:
         return distance
     joined = [
@@ -89,24 +91,24 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
     return distance, Touches(joined[0].astype(np.int64), *joined[1:])
 
 
-#: link points handled at once: a measure's pairs, and a collision test's hands, go through
-#: their exact queries in runs of about this many points of their links (one pair or hand with
-#: more alone), so that the temporaries stay near 20 MB however many hands they take. In one
-#: run, a measure of 1,024 closed franka hands took 131 MB in one, which a fresh trial worker's
-#: first chunk had to fault in from the system
-BLOCK_POINTS = 1 << 18
+#: how much a measure or a collision test takes at once: a measure's pairs go through their
+#: exact queries in runs of about this many cover spheres of their links, a collision test's
+#: hands in runs of about this many link points (:func:`_runs`), so that their temporaries stay
+#: near 20 MB however many hands they take. In one run, measuring 1,024 closed franka hands at
+#: once took 131 MB (1.3 million cover spheres), which a fresh trial worker's first chunk had to
+#: fault in from the system
+BLOCK_COVERS, BLOCK_POINTS = 1 << 17, 1 << 17
 
 
-def _cuts(points, owner):
-    """Where to cut consecutive items with ``points`` (k,) link points each into runs of about
-    :data:`BLOCK_POINTS` points, never between two items of one ``owner`` (k,), sorted: the
-    positions for ``np.split``, none when all fit in one run."""
-    total = np.cumsum(points)
-    if not len(total) or total[-1] <= BLOCK_POINTS:
-        return []
+def _runs(items, sizes, owner, block):
+    """``items`` (k,) in consecutive runs of about ``block`` of their ``sizes`` (k,) each, never
+    parting two items of one ``owner`` (k,), sorted; the items whole when all fit in one run."""
+    total = np.cumsum(sizes)
+    if not len(total) or total[-1] <= block:
+        return [items]
     first = np.flatnonzero(np.diff(owner, prepend=owner[0] - 1))  # each owner's first item
-    run = (total - points)[first] // BLOCK_POINTS  # the run each owner starts in
-    return first[1:][np.diff(run) > 0]
+    run = (total - sizes)[first] // block  # the run each owner starts in
+    return np.split(items, first[1:][np.diff(run) > 0])
 
 
 def _measure_close(mesh, model, features, flat, slot, close, near, tolerance, distance, touches):
@@ -481,9 +483,8 @@ def collides(mesh, model, poses, *, overlap=None, along=None):
     # every link point of those links (a sphere-level cull costs more than it saves here: a
     # hand being retreated is close to the surface)
     starts = _starts(model.point_link, count)
-    cuts = _cuts(np.diff(starts)[links[unsure]], rows[unsure])
-    for block in np.split(unsure, cuts) if len(cuts) else [unsure]:
-        _points_inside(mesh, model, flat, rows, links, block, starts, along, hit, deepest)
+    for run in _runs(unsure, np.diff(starts)[links[unsure]], rows[unsure], BLOCK_POINTS):
+        _points_inside(mesh, model, flat, rows, links, run, starts, along, hit, deepest)
     unsure = unsure[~hit[rows[unsure]]]  # the vertex test only where no link point is inside
     deepest_feature = np.full(len(slot), np.inf)
     covers = _covers(mesh, model, flat, slot, unsure)
