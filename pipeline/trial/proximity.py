@@ -77,11 +77,12 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
     distance[has] = np.maximum(bound[has], 0.0)
     distance[close] = np.inf
     touches = ([], [], [])
-    runs = [close] if len(close) * len(model.cover_radius) <= BLOCK_COVERS else None  # the usual few pairs
-    if runs is None:
+    if len(close) * len(model.cover_radius) <= BLOCK_COVERS:  # the usual few pairs: one run, no sums
+        runs = [close] if len(close) else []
+    else:
         covers = np.diff(_starts(model.piece_link[model.cover_piece], count))
         runs = _runs(close, covers[links[close]], close, BLOCK_COVERS)
-    for run in runs if len(close) else []:
+    for run in runs:
         _measure_close(mesh, model, features, flat, slot, run, near, tolerance, distance, touches)
     if tolerance is None:
         return distance
