@@ -261,20 +261,21 @@ def test_simulate_tables_summary_and_worker_independence():
     pd.testing.assert_frame_equal(contacts, again_contacts)
 
 
-def test_chunks_cover_every_row_once_each_a_sample_of_its_table_with_workers():
-    lengths = [1300, 0, 70]
+def test_chunks_cover_every_row_once_a_hands_tables_together_each_a_sample_of_them_with_workers():
+    hands, lengths = [0, 1, 0, 0], [1300, 0, 70, 5]
     for workers in (1, 2, 3):
-        found = list(chunks(lengths, workers))
-        rows = sorted((table, int(row)) for table, chunk in found for row in chunk)
+        found = list(chunks(hands, lengths, workers))
+        rows = sorted((int(table), int(row)) for _, tables, chunk in found for table, row in zip(tables, chunk))
         assert rows == [(table, row) for table, length in enumerate(lengths) for row in range(length)]
-        assert max(len(chunk) for _, chunk in found) <= CHUNK
-        if workers == 1:  # one process: the engine's full chunks of consecutive rows
-            assert [len(chunk) for _, chunk in found] == [CHUNK, 1300 - CHUNK, 70]
-            assert all((np.diff(chunk) == 1).all() for _, chunk in found)
-        else:  # a multiple of the workers per table, each every count-th row of it
-            per_table = [sum(table == number for table, _ in found) for number in range(3)]
-            assert per_table[0] == workers * -(-1300 // (workers * CHUNK)) and per_table[2] == workers
-            assert all(len(set(np.diff(chunk))) <= 1 for _, chunk in found)
+        assert all(hand == 0 and all(hands[table] == 0 for table in tables) for hand, tables, _ in found)
+        # the hand's 1,375 trials in as few chunks as CHUNK and the workers allow, a multiple of
+        # the workers, each every count-th trial: sizes differ by one at most
+        count = workers * -(-1375 // (workers * CHUNK))
+        sizes = [len(chunk) for _, _, chunk in found]
+        assert len(found) == count and max(sizes) <= CHUNK and max(sizes) - min(sizes) <= 1
+        first = found[0]  # trials 0, count, 2 count, ...: the first table's, then the others'
+        assert first[2][:2].tolist() == [0, count] and first[1][-1] == 3
+    assert [len(chunk) for _, _, chunk in chunks([0, 1], [70, 40], 2)] == [35, 35, 20, 20]
 
 
 def test_run_trials_keeps_table_order_across_workers():
@@ -284,7 +285,7 @@ def test_run_trials_keeps_table_order_across_workers():
         (1, baseline_candidates(cube(), HANDS["barrett"], 40, np.random.default_rng(3))),
     ]
     hands = [HANDS["parallel_jaw"], HANDS["barrett"]]
-    assert len(list(chunks([70, 40], 2))) > 2
+    assert len(list(chunks([0, 1], [70, 40], 2))) > 2
     serial = run_trials(cube(), hands, tables, None, workers=1)
     parallel = run_trials(cube(), hands, tables, None, workers=2)
     for one, other in zip(serial, parallel):

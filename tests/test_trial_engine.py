@@ -357,6 +357,15 @@ def test_every_link_point_lies_in_the_cover_sphere_that_culls_it(name, refine):
     assert np.array_equal(model.piece_link[model.cover_piece[model.point_cover]], model.point_link)
     assert np.all(model.cover_reach <= model.cover_radius * (1 + 1e-9))
     assert np.all(np.diff(model.point_cover) >= 0)  # grouped by sphere, so a sphere's points are a range
+    # those ranges, and each link's range of cover spheres, as a measure slices them
+    link_of_cover = model.piece_link[model.cover_piece]
+    for link in range(len(model.links)):
+        first, last = model.link_cover_start[link : link + 2]
+        assert np.array_equal(np.arange(first, last), np.flatnonzero(link_of_cover == link))
+    for cover in range(len(model.cover_radius)):
+        first, last = model.cover_point_start[cover : cover + 2]
+        assert np.array_equal(np.arange(first, last), np.flatnonzero(model.point_cover == cover))
+    assert model.link_cover_start[-1] == len(model.cover_radius) and model.cover_point_start[-1] == len(model.points)
 
 
 @pytest.mark.parametrize("name", sorted(HANDS))

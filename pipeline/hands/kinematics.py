@@ -68,6 +68,8 @@ class HandModel:
     cover_radius: np.ndarray  # (C,)
     cover_piece: np.ndarray  # (C,)
     cover_reach: np.ndarray  # (C,) farthest of its points (``point_cover``) from its centre; its radius if none
+    link_cover_start: np.ndarray  # (L + 1,) each link's first cover sphere (covers are sorted by link), then C
+    cover_point_start: np.ndarray  # (C + 1,) each cover sphere's first point (``point_cover`` order), then P
     box_centre: np.ndarray  # (S, 3) link frame
     box_rotation: np.ndarray  # (S, 3, 3)
     box_half: np.ndarray  # (S, 3)
@@ -498,6 +500,8 @@ def _build(frozen, spacing, refine):
         cover_radius,
         cover_piece,
         cover_reach,
+        np.searchsorted(np.array(piece_link, int)[cover_piece], np.arange(len(links) + 1)),
+        np.searchsorted(point_cover, np.arange(len(cover_centre) + 1)),
         np.array([box[0] for box in boxes]).reshape(-1, 3),
         np.array([box[1] for box in boxes]).reshape(-1, 3, 3),
         np.array([box[2] for box in boxes]).reshape(-1, 3),

@@ -106,20 +106,22 @@ def baseline_candidates(surface, hand, count, rng):
     )
 
 
-def chunks(lengths, workers=1):
-    """The chunks of tables of ``lengths`` rows: (table number, its rows) each, :data:`CHUNK` rows
-    at most. One process: consecutive rows. Several ``workers``: each table in a multiple of
-    ``workers`` chunks, row ``k`` in chunk ``k mod count``, so that every chunk is as large as
-    the batch allows (the engine's per-pass cost is shared by its rows) and a sample of the
-    whole table (the processes end together whatever the order of the rows' costs)."""
-    for number, length in enumerate(lengths):
-        if workers <= 1:
-            for first in range(0, length, CHUNK):
-                yield number, np.arange(first, min(first + CHUNK, length))
-            continue
-        count = workers * -(-length // (workers * CHUNK))
-        for chunk in range(min(count, length)):
-            yield number, np.arange(chunk, length, count)
+def chunks(hands, lengths, workers=1):
+    """The chunks of the trials of tables of ``lengths`` rows, those of one hand (the tables'
+    ``hands`` numbers) together: (hand, table numbers (k,), their rows (k,)) each, :data:`CHUNK`
+    trials at most. Each hand's trials in a multiple of ``workers`` chunks, its ``k``-th trial
+    (tables in order) in chunk ``k mod count``, so that every chunk is as large as the batch
+    allows (the engine's per-pass cost is shared by its trials; a hand's small tables add no
+    chunks of their own) and, with several workers, a sample of them all (the processes end
+    together whatever the order of the trials' costs)."""
+    hands, lengths = np.asarray(hands, np.int64), np.asarray(lengths, np.int64)
+    for hand in dict.fromkeys(hands.tolist()):
+        tables = np.flatnonzero(hands == hand)
+        table = np.repeat(tables, lengths[tables])
+        row = np.concatenate([np.arange(length) for length in lengths[tables]])
+        count = workers * -(-len(table) // (workers * CHUNK))
+        for chunk in range(min(count, len(table))):
+            yield hand, table[chunk::count], row[chunk::count]
 
 
 # the caller's objects (its libraries', its tables) out of the collector's full passes, which the
@@ -160,7 +162,7 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
         list(zip(vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), table.preshape))
         for _, table in tables
     ]
-    parts = list(chunks([len(rows) for rows in targets], workers))
+    parts = list(chunks([number for number, _ in tables], [len(rows) for rows in targets], workers))
     done, total, lock = [None] * len(parts), sum(map(len, targets)), threading.Lock()
     left = collections.deque(range(len(parts)))
 
@@ -178,8 +180,8 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
                 progress(len(results), total)
 
     def chunk_of(number):
-        table, rows = parts[number]
-        return tables[table][0], [targets[table][row] for row in rows]
+        hand, table, rows = parts[number]
+        return hand, [targets[one][row] for one, row in zip(table, rows)]
 
     settings = trial_settings(settings)
     used = sorted({number for (number, _), rows in zip(tables, targets) if rows})
@@ -266,9 +268,9 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
             ) from failed[0]
         raise failed[0]
     results = [[None] * len(rows) for rows in targets]
-    for (table, rows), found in zip(parts, done):
-        for row, result in zip(rows, found):
-            results[table][row] = result
+    for (_, table, rows), found in zip(parts, done):
+        for one, row, result in zip(table, rows, found):
+            results[one][row] = result
     spans.append(("call", 0, called, time.perf_counter()))
     return results
 

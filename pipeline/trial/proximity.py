@@ -80,7 +80,7 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
     if len(close) * len(model.cover_radius) <= BLOCK_COVERS:  # the usual few pairs: one run, no sums
         runs = [close] if len(close) else []
     else:
-        covers = np.diff(_starts(model.piece_link[model.cover_piece], count))
+        covers = np.diff(model.link_cover_start)
         runs = _runs(close, covers[links[close]], close, BLOCK_COVERS)
     for run in runs:
         _measure_close(mesh, model, features, flat, slot, run, near, tolerance, distance, touches)
@@ -164,9 +164,8 @@ def _measure_close(mesh, model, features, flat, slot, close, near, tolerance, di
 def _covers(mesh, model, flat, slot, close):
     """The cover spheres of the pairs ``close``: their pair (k,), cover (k,), world centres (k, 3)
     and clearance (k,) m (a lower bound on their centres' distance to the object)."""
-    count = len(model.links)
-    starts = _starts(model.piece_link[model.cover_piece], count)
-    link = slot[close] % count
+    starts = model.link_cover_start
+    link = slot[close] % len(model.links)
     owner, cover = expand_ranges(starts[link], np.diff(starts)[link])
     pair = close[owner]
     centres = transform(flat, slot[pair], model.cover_centre[cover])
@@ -176,7 +175,7 @@ def _covers(mesh, model, flat, slot, close):
 def _cover_points(model, flat, slot, pair, cover):
     """The link points of cover spheres ``cover`` (k,) of pairs ``pair`` (k,): their pair (m,),
     index in ``model.points`` (m,) and world positions (m, 3)."""
-    starts = _starts(model.point_cover, len(model.cover_radius))
+    starts = model.cover_point_start
     owner, point = expand_ranges(starts[cover], np.diff(starts)[cover])
     return pair[owner], point, transform(flat, slot[pair[owner]], model.points[point])
 
