@@ -27,11 +27,13 @@ from .hands.spec import HANDS
 from .params import CandidatesParams, ClassifyParams, MatParams, MedialAxisParams, Params, SampleParams, SimulateParams
 from .pool import default_workers
 from .trial.engine import GraspEngine
-from .trial.protocol import CHUNK, run_trials
+from .trial.protocol import CHUNK, run_trials, trial_tables
 
 #: run_trials' batches in the trial bench: a small and a median default simulate stage (make
 #: run's run up to 3,276 trials, median about 2,000)
 TRIAL_BATCHES = (512, 2048)
+#: the label of the trial table's third batch: a default ``simulate`` stage's tables on the duck
+STAGE_BATCH = "stage"
 
 BOX_HALF = np.array([0.05, 0.03, 0.01])
 CAPSULE_RADIUS, CAPSULE_HALF_LENGTH = 0.02, 0.05
@@ -319,7 +321,8 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     (:mod:`pipeline.trial.engine`, batched) on random MAT candidates, one core; where its time
     goes; its outcomes and, on the first ``reference_trials``, their confusion table against
     :mod:`pipeline.trial.reference` (pybullet's exact queries, the same protocol); and
-    :func:`pipeline.trial.protocol.run_trials` of :data:`TRIAL_BATCHES` trials on one core
+    :func:`pipeline.trial.protocol.run_trials` of :data:`TRIAL_BATCHES` trials and of a default
+    ``simulate`` stage's tables (:data:`STAGE_BATCH`: MAT and baseline) on one core
     (:func:`one_core`), in one process and on every core, in ``repeats`` interleaved rounds
     (:func:`interleaved_seconds`): rates are medians, ratios the median of each round's, and where
     the one-core and all-core calls' time went (:func:`timeline_parts`, medians). Returns
@@ -334,13 +337,15 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     artefacts, faces = trial_bench_chain()
     surface, symmetry = artefacts["sample"], artefacts["classify"]
     settings = SimulateParams()
-    batches = TRIAL_BATCHES
+    batches = (*TRIAL_BATCHES, STAGE_BATCH)
+    stage = Params().simulate
     out(f"grasp trials on the duck ({faces} triangles), {trials} random MAT candidates per hand; all cores = {cores}")
     out(
         f"engine: one core, the engine set up. run_trials (the engine's set-up included; {repeats} rounds, "
         "the three ways in turn; rates: medians; ratios: the median of the rounds') of "
-        f"{' and '.join(map(str, batches))} trials (distinct candidates of the hand, the engine's first, "
-        "repeated only past all the duck has; a default simulate stage has 400-3,000): one core (every "
+        f"{' and '.join(map(str, TRIAL_BATCHES))} trials (distinct candidates of the hand, the engine's first, "
+        f"repeated only past all the duck has) and of a {STAGE_BATCH}: the tables of a default simulate stage "
+        "on the duck (MAT candidates of 200 spheres and as many baseline ones; a stage has 400-3,300): one core (every "
         "thread of the process held to one CPU), one process (its open3d threads on every core) and all "
         "cores; ratio: all cores / one core (/ one process)"
     )
@@ -373,16 +378,32 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
         # a batch of distinct candidates, as a simulate stage's: the engine's first, then the
         # object's others (each process's chunk a sample of them; 512 candidates repeated would
         # give each the same 256 four times, their costs never averaging out)
-        distinct = drawn_first(generate(symmetry, hand), trials)
+        candidates = generate(symmetry, hand)
+        distinct = drawn_first(candidates, trials)
+        runs = {
+            batch: [(0, pd.concat([distinct] * (-(-batch // len(distinct))), ignore_index=True).iloc[:batch])]
+            for batch in TRIAL_BATCHES
+        }
+        runs[STAGE_BATCH] = [
+            (0, table)
+            for _, _, table in trial_tables(
+                surface,
+                candidates,
+                [hand],
+                spheres_per_object=stage.spheres_per_object,
+                baseline_trials=stage.baseline_trials,
+                seed=0,
+            )
+        ]
+        sizes = {batch: sum(len(table) for _, table in tables) for batch, tables in runs.items()}
         for batch in batches:
-            repeated = pd.concat([distinct] * (-(-batch // len(distinct))), ignore_index=True).iloc[:batch]
             timelines = defaultdict(list)
 
             def timed(workers, holder, kept):
                 def run():
                     timeline = []
                     with holder():
-                        run_trials(surface, [hand], [(0, repeated)], settings, workers=workers, timeline=timeline)
+                        run_trials(surface, [hand], runs[batch], settings, workers=workers, timeline=timeline)
                     kept.append(timeline)
 
                 return run
@@ -396,7 +417,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
                 repeats,
             )
             for key, values in seconds.items():
-                rates[batch, key] = batch / float(np.median(values))
+                rates[batch, key] = sizes[batch] / float(np.median(values))
                 found = pd.DataFrame([timeline_parts(timeline) for timeline in timelines[key]])
                 parts[batch, key] = {name: round(float(value), 4) for name, value in found.median().items()}
             for key in ("core", "process"):
@@ -410,6 +431,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
             run_trials=[
                 dict(
                     batch=batch,
+                    trials=sizes[batch],
                     one_core_per_s=round(rates[batch, "core"], 1),
                     one_process_per_s=round(rates[batch, "process"], 1),
                     all_cores_per_s=round(rates[batch, "all"], 1),
@@ -437,8 +459,9 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
         )
         for batch in batches:
             one, every = parts[batch, "core"], parts[batch, "all"]
+            label = f"{sizes[batch]:>5} trials" + (f" ({batch})" if batch == STAGE_BATCH else "")
             out(
-                f"    {batch:>5} trials, s: one core set-up {one['set-up']:.3f} trials {one['caller']:.3f} | "
+                f"    {label}, s: one core set-up {one['set-up']:.3f} trials {one['caller']:.3f} | "
                 f"{cores} cores start {every['start']:.3f} set-up {every['set-up']:.3f} ship {every['ship']:.3f} "
                 f"trials {every['caller']:.3f} here, {every['workers']:.3f} in a worker (from {every['lag']:+.3f}), "
                 f"its results {every['results']:.3f}, after {every['after']:.3f}; "

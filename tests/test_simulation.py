@@ -261,21 +261,25 @@ def test_simulate_tables_summary_and_worker_independence():
     pd.testing.assert_frame_equal(contacts, again_contacts)
 
 
-def test_chunks_cover_every_row_once_a_hands_tables_together_each_a_sample_of_them_with_workers():
-    hands, lengths = [0, 1, 0, 0], [1300, 0, 70, 5]
+def test_chunks_cover_every_trial_once_a_hands_tables_together_each_a_sample_of_them_with_workers():
+    hands, lengths = [0, 1, 0, 0], [1300, 0, 70, 5]  # trials 0-1299, 1300-1369 and 1370-1374
     for workers in (1, 2, 3):
         found = list(chunks(hands, lengths, workers))
-        rows = sorted((int(table), int(row)) for _, tables, chunk in found for table, row in zip(tables, chunk))
-        assert rows == [(table, row) for table, length in enumerate(lengths) for row in range(length)]
-        assert all(hand == 0 and all(hands[table] == 0 for table in tables) for hand, tables, _ in found)
+        assert sorted(int(trial) for _, trials in found for trial in trials) == list(range(1375))
+        assert all(hand == 0 for hand, _ in found)
         # the hand's 1,375 trials in as few chunks as CHUNK and the workers allow, a multiple of
         # the workers, each every count-th trial: sizes differ by one at most
         count = workers * -(-1375 // (workers * CHUNK))
-        sizes = [len(chunk) for _, _, chunk in found]
+        sizes = [len(trials) for _, trials in found]
         assert len(found) == count and max(sizes) <= CHUNK and max(sizes) - min(sizes) <= 1
-        first = found[0]  # trials 0, count, 2 count, ...: the first table's, then the others'
-        assert first[2][:2].tolist() == [0, count] and first[1][-1] == 3
-    assert [len(chunk) for _, _, chunk in chunks([0, 1], [70, 40], 2)] == [35, 35, 20, 20]
+        assert all((np.diff(trials) == count).all() for _, trials in found)
+    # two hands, 70 and 40 trials, two workers: two chunks each, the second hand's numbered on
+    assert [(hand, len(trials), int(trials[0])) for hand, trials in chunks([0, 1], [70, 40], 2)] == [
+        (0, 35, 0),
+        (0, 35, 1),
+        (1, 20, 70),
+        (1, 20, 71),
+    ]
 
 
 def test_run_trials_keeps_table_order_across_workers():

@@ -568,16 +568,14 @@ def start_pool_worker(shipped):
     start_worker(engines)
 
 
-def run_chunk(hand_number, targets):
-    """Trials of ``targets`` ((P_g, P_d, P_o, preshape) tuples) with hand ``hand_number``: their
-    results, and when they started and ended (``time.perf_counter`` seconds, one clock for every
-    process of the machine on Linux)."""
+def run_chunk(hand_number, grasp, approach, orient, preshapes):
+    """Trials of the candidates ``grasp``, ``approach``, ``orient`` (n, 3) and ``preshapes`` (n,)
+    (:meth:`GraspEngine.run`) with hand ``hand_number``: their results, and when they started and
+    ended (``time.perf_counter`` seconds, one clock for every process of the machine on Linux)."""
     start = time.perf_counter()
-    if not targets:
+    if not len(grasp):
         return [], start, start
-    grasp, approach, orient, preshapes = zip(*targets)
-    engine = _WORKER["engines"][hand_number]
-    results = engine.run(np.array(grasp), np.array(approach), np.array(orient), list(preshapes))
+    results = _WORKER["engines"][hand_number].run(grasp, approach, orient, preshapes)
     return results, start, time.perf_counter()
 
 

@@ -107,21 +107,21 @@ def baseline_candidates(surface, hand, count, rng):
 
 
 def chunks(hands, lengths, workers=1):
-    """The chunks of the trials of tables of ``lengths`` rows, those of one hand (the tables'
-    ``hands`` numbers) together: (hand, table numbers (k,), their rows (k,)) each, :data:`CHUNK`
-    trials at most. Each hand's trials in a multiple of ``workers`` chunks, its ``k``-th trial
-    (tables in order) in chunk ``k mod count``, so that every chunk is as large as the batch
-    allows (the engine's per-pass cost is shared by its trials; a hand's small tables add no
-    chunks of their own) and, with several workers, a sample of them all (the processes end
-    together whatever the order of the trials' costs)."""
+    """The chunks of the trials of tables of ``lengths`` rows, numbered through the tables in
+    order, those of one hand (the tables' ``hands`` numbers) together: (hand, trial numbers) each,
+    :data:`CHUNK` trials at most. Each hand's trials in a multiple of ``workers`` chunks, its
+    ``k``-th trial in chunk ``k mod count``, so that every chunk is as large as the batch allows
+    (the engine's per-pass cost is shared by its trials; a hand's small tables add no chunks of
+    their own) and, with several workers, a sample of them all (the processes end together
+    whatever the order of the trials' costs)."""
     hands, lengths = np.asarray(hands, np.int64), np.asarray(lengths, np.int64)
+    first = np.cumsum(lengths) - lengths
     for hand in dict.fromkeys(hands.tolist()):
         tables = np.flatnonzero(hands == hand)
-        table = np.repeat(tables, lengths[tables])
-        row = np.concatenate([np.arange(length) for length in lengths[tables]])
-        count = workers * -(-len(table) // (workers * CHUNK))
-        for chunk in range(min(count, len(table))):
-            yield hand, table[chunk::count], row[chunk::count]
+        trials = np.concatenate([np.arange(first[table], first[table] + lengths[table]) for table in tables])
+        count = workers * -(-len(trials) // (workers * CHUNK))
+        for chunk in range(min(count, len(trials))):
+            yield hand, trials[chunk::count]
 
 
 # the caller's objects (its libraries', its tables) out of the collector's full passes, which the
@@ -158,12 +158,16 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
     """
     called = time.perf_counter()
     spans = [] if timeline is None else timeline
+    # every table's candidates in one set of arrays: a chunk's go to a worker as a few arrays
+    # (as (P_g, P_d, P_o) tuples, 1,024 took 0.014 s to pickle here and 0.008 s to load there)
+    lengths = [len(table) for _, table in tables]
     targets = [
-        list(zip(vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), table.preshape))
-        for _, table in tables
+        np.concatenate([vectors(table, name) for _, table in tables]) if tables else np.zeros((0, 3))
+        for name in ("grasp", "approach", "orient")
     ]
-    parts = list(chunks([number for number, _ in tables], [len(rows) for rows in targets], workers))
-    done, total, lock = [None] * len(parts), sum(map(len, targets)), threading.Lock()
+    preshapes = [name for _, table in tables for name in table.preshape]
+    parts = list(chunks([number for number, _ in tables], lengths, workers))
+    done, total, lock = [None] * len(parts), sum(lengths), threading.Lock()
     left = collections.deque(range(len(parts)))
 
     def take():
@@ -180,11 +184,11 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
                 progress(len(results), total)
 
     def chunk_of(number):
-        hand, table, rows = parts[number]
-        return hand, [targets[one][row] for one, row in zip(table, rows)]
+        hand, trials = parts[number]
+        return hand, *(values[trials] for values in targets), [preshapes[trial] for trial in trials]
 
     settings = trial_settings(settings)
-    used = sorted({number for (number, _), rows in zip(tables, targets) if rows})
+    used = sorted({number for (number, _), length in zip(tables, lengths) if length})
     feeders, failed = [], []
     helpers = min(workers, len(parts)) - 1
     # the worker processes start while this one builds the engines, then wait on the queue
@@ -267,12 +271,12 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
                 f"simulate.workers, or --workers): each holds the object's mesh and a chunk of up to {CHUNK} trials"
             ) from failed[0]
         raise failed[0]
-    results = [[None] * len(rows) for rows in targets]
-    for (_, table, rows), found in zip(parts, done):
-        for one, row, result in zip(table, rows, found):
-            results[one][row] = result
+    results = [None] * total
+    for (_, trials), found in zip(parts, done):
+        for trial, result in zip(trials, found):
+            results[trial] = result
     spans.append(("call", 0, called, time.perf_counter()))
-    return results
+    return [results[first : first + length] for first, length in zip(np.cumsum(lengths) - lengths, lengths)]
 
 
 def _close_pool(executor, shipped, copy):
@@ -281,6 +285,25 @@ def _close_pool(executor, shipped, copy):
     executor.shutdown(cancel_futures=True)
     shipped.close()
     os.unlink(copy)
+
+
+def trial_tables(surface, candidates, hands, *, spheres_per_object, baseline_trials, seed=0):
+    """The tables of candidates a ``simulate`` stage tries (the module docstring's protocol):
+    (planner, hand number in ``hands``, table) for each hand's MAT candidates, its baseline and,
+    if any, its encompassing candidates; arguments as :func:`simulate`'s."""
+    jobs = []
+    for number, hand in enumerate(hands):
+        # fresh streams for every hand: a hand's trials do not depend on the other hands run with it
+        mat = select_candidates(candidates, hand.name, spheres_per_object, seeds.trial_spheres(seed))
+        count = len(mat) if baseline_trials < 0 else baseline_trials
+        baseline = baseline_candidates(surface, hand, count, seeds.baseline(seed))
+        jobs += [("mat", number, mat), ("baseline", number, baseline)]
+        encompassing = select_candidates(
+            candidates, hand.name, spheres_per_object, seeds.trial_spheres(seed), encompassing=True
+        )
+        if len(encompassing):
+            jobs.append(("encompassing", number, encompassing))
+    return jobs
 
 
 def simulate(
@@ -309,18 +332,9 @@ def simulate(
     trials, contacts : pandas.DataFrame (see the module docstring)
     """
     check_simulable(surface)
-    jobs = []
-    for number, hand in enumerate(hands):
-        # fresh streams for every hand: a hand's trials do not depend on the other hands run with it
-        mat = select_candidates(candidates, hand.name, spheres_per_object, seeds.trial_spheres(seed))
-        count = len(mat) if baseline_trials < 0 else baseline_trials
-        baseline = baseline_candidates(surface, hand, count, seeds.baseline(seed))
-        jobs += [("mat", number, mat), ("baseline", number, baseline)]
-        encompassing = select_candidates(
-            candidates, hand.name, spheres_per_object, seeds.trial_spheres(seed), encompassing=True
-        )
-        if len(encompassing):
-            jobs.append(("encompassing", number, encompassing))
+    jobs = trial_tables(
+        surface, candidates, hands, spheres_per_object=spheres_per_object, baseline_trials=baseline_trials, seed=seed
+    )
     results = run_trials(
         surface,
         hands,
