@@ -148,7 +148,7 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
     timeline : list, optional
         Where the call's time went, appended as (step, process, start, end) spans in
         ``time.perf_counter`` seconds (process 0 this one, 1 to ``workers - 1`` the workers):
-        ``start workers`` (their processes forked), ``set-up`` (the engines built), ``ship``
+        ``start workers`` (the threads that fork them started), ``set-up`` (the engines built), ``ship``
         (their copy written for the workers), ``chunk`` (each chunk's trials, where they ran),
         ``results`` (a worker's chunk ended to its results here), ``call`` (the whole call).
 
@@ -214,13 +214,15 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
         for _ in range(helpers):
             shipped.put(copy)
 
-    def feed(number, future, process):  # keeps one worker process busy, chunk after chunk
+    # one thread per worker process forks it (its first chunk's submit) while this one builds the
+    # engines, then keeps it busy, chunk after chunk: the fork is a wait on the fork server
+    # (0.006-0.017 s) with the interpreter lock let go, and a chunk's candidates, a few arrays,
+    # pickle at once
+    def feed(number, process):
         try:
-            while True:
-                finish(number, process, *future.result())
-                if (number := take()) is None:
-                    return
-                future = executor.submit(run_chunk, *chunk_of(number))
+            while number is not None:
+                finish(number, process, *executor.submit(run_chunk, *chunk_of(number)).result())
+                number = take()
         except BaseException as error:  # noqa: BLE001 (raised again in the caller's thread)
             failed.append(error)
             with lock:
@@ -228,12 +230,7 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
 
     try:
         for process in range(1, helpers + 1):
-            # each worker's process starts from this thread before it works: started from another
-            # thread while this one computes, each step of the start would wait for the interpreter
-            # lock (about 0.5 s in all on the duck, the first chunk's time here)
-            number = take()
-            future = executor.submit(run_chunk, *chunk_of(number))
-            feeders.append(threading.Thread(target=feed, args=(number, future, process), daemon=True))
+            feeders.append(threading.Thread(target=feed, args=(take(), process), daemon=True))
             feeders[-1].start()
         forked = time.perf_counter()
         spans.append(("start workers", 0, called, forked))
