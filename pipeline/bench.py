@@ -277,8 +277,8 @@ def interleaved_seconds(runs, rounds, clock=time.perf_counter):
 
 
 def timeline_parts(timeline):
-    """Seconds of a :func:`run_trials` call's steps from its ``timeline``: ``start`` (forking the
-    workers), ``set-up`` (the engines), ``ship`` (their copy for the workers), ``caller`` and
+    """Seconds of a :func:`run_trials` call's steps from its ``timeline``: ``start`` (starting the
+    threads that fork the workers), ``set-up`` (the engines), ``ship`` (their copy for the workers), ``caller`` and
     ``workers`` (the trials of the caller's chunks; of the busiest worker's), ``lag`` (that
     worker's first chunk's start after the caller's first), ``results`` (its chunks' ends to
     their results in the caller) and ``after`` (the last of those to the call's end)."""
@@ -358,7 +358,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     )
     out(
         "  then per batch, where run_trials' time went (medians of the rounds): on one core the set-up (the object "
-        "mesh and engines) and the trials; on all cores forking the workers, the set-up, the engines' copy for the "
+        "mesh and engines) and the trials; on all cores starting the threads that fork the workers, the set-up, the engines' copy for the "
         "workers, the trials in this process and in the busiest worker (its first chunk's start after this "
         "process's), its results' trip back, and the rest of the call after them; the ratio had the workers cost "
         "nothing (these set-ups, one core's trials shared by the cores)"
