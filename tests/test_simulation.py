@@ -268,11 +268,22 @@ def test_chunks_cover_every_trial_once_a_hands_tables_together_each_a_sample_of_
         assert sorted(int(trial) for _, trials in found for trial in trials) == list(range(1375))
         assert all(hand == 0 for hand, _ in found)
         # the hand's 1,375 trials in as few chunks as CHUNK and the workers allow, a multiple of
-        # the workers, each every count-th trial: sizes differ by one at most
+        # the workers, each one of every count trials in a row: sizes differ by one at most
         count = workers * -(-1375 // (workers * CHUNK))
         sizes = [len(trials) for _, trials in found]
         assert len(found) == count and max(sizes) <= CHUNK and max(sizes) - min(sizes) <= 1
-        assert all((np.diff(trials) == count).all() for _, trials in found)
+        block = np.zeros(1375, np.int64)
+        for _, trials in found:
+            assert (np.bincount(trials // count) == 1)[:-1].all()
+            block[trials] += 1
+        assert (block == 1).all()
+    # rows of a kind recurring every 2 or 4 (a rim sphere's P_o and -P_o, rows 2m and 2m + 1)
+    # spread evenly over the chunks: every count-th trial gave each chunk of 820 trials on two
+    # workers 410 of one kind and none of the other
+    for workers, trials in ((2, 820), (2, 3000), (3, 2400), (4, 5000)):
+        for _, chunk in chunks([0], [trials], workers):
+            for period in (2, 4):
+                assert (np.abs(np.bincount(chunk % period, minlength=period) - len(chunk) / period) <= 2).all()
     # two hands, 70 and 40 trials, two workers: two chunks each, the second hand's numbered on
     assert [(hand, len(trials), int(trials[0])) for hand, trials in chunks([0, 1], [70, 40], 2)] == [
         (0, 35, 0),

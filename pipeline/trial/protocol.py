@@ -109,19 +109,35 @@ def baseline_candidates(surface, hand, count, rng):
 def chunks(hands, lengths, workers=1):
     """The chunks of the trials of tables of ``lengths`` rows, numbered through the tables in
     order, those of one hand (the tables' ``hands`` numbers) together: (hand, trial numbers) each,
-    :data:`CHUNK` trials at most. Each hand's trials in a multiple of ``workers`` chunks, its
-    ``k``-th trial in chunk ``k mod count``, so that every chunk is as large as the batch allows
-    (the engine's per-pass cost is shared by its trials; a hand's small tables add no chunks of
-    their own) and, with several workers, a sample of them all (the processes end together
-    whatever the order of the trials' costs)."""
+    :data:`CHUNK` trials at most. Each hand's trials in a multiple of ``workers`` chunks, so that
+    every chunk is as large as the batch allows (the engine's per-pass cost is shared by its
+    trials; a hand's small tables add no chunks of their own) and, with several workers, a sample
+    of them all (the processes end together whatever the order of the trials' costs).
+
+    The hand's ``k``-th trial goes to chunk ``s(k) mod count``, ``s(k)`` the sum of ``k``'s digits
+    in base ``2 count``: every ``count`` trials in a row give one to each chunk, as ``k mod count``
+    would, and rows of a kind that recurs every 2 or 4 spread evenly over the chunks. A rim
+    sphere's two candidates, P_o then -P_o, are such rows: ``k mod count`` gave each chunk one
+    of the two with an even count, and with ARMAR-III on the duck's default stage one chunk cost
+    10 % more than the other (on one core, 0.907 against 0.824 s)."""
     hands, lengths = np.asarray(hands, np.int64), np.asarray(lengths, np.int64)
     first = np.cumsum(lengths) - lengths
     for hand in dict.fromkeys(hands.tolist()):
         tables = np.flatnonzero(hands == hand)
         trials = np.concatenate([np.arange(first[table], first[table] + lengths[table]) for table in tables])
         count = workers * -(-len(trials) // (workers * CHUNK))
+        chunk_of = _digit_sums(np.arange(len(trials)), 2 * count) % count
         for chunk in range(min(count, len(trials))):
-            yield hand, trials[chunk::count]
+            yield hand, trials[chunk_of == chunk]
+
+
+def _digit_sums(numbers, base):
+    """(n,) the sums of the digits of the (n,) non-negative int ``numbers`` written in ``base``."""
+    numbers, sums = np.array(numbers, np.int64), np.zeros(len(numbers), np.int64)
+    while numbers.any():
+        sums += numbers % base
+        numbers //= base
+    return sums
 
 
 # the caller's objects (its libraries', its tables) out of the collector's full passes, which the
