@@ -151,6 +151,37 @@ def test_broken_params_give_one_line(extra, expected, tmp_path):
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    "arguments, expected",
+    [
+        (["bench", "--only", "trials", "--trials", "0"], "bench: --trials must be >= 1, got 0"),
+        (["bench", "--only", "trials", "--repeats", "0"], "bench: --repeats must be >= 1, got 0"),
+        (["bench", "--only", "trials", "--reference-trials", "-3"], "bench: --reference-trials must be >= 0, got -3"),
+        (["bench", "--only", "medial", "--sizes", "20000,-5"], "bench: --sizes must be positive sample counts"),
+        (["bench", "--only", "medial", "--sizes", "many"], "bench: --sizes must be positive sample counts"),
+        (
+            ["plan", "primitive:box", "--workers", "-2", "--out", "out"],
+            "--workers must be >= 0 (0: every core), got -2",
+        ),
+        (
+            ["ablate", "primitive:box", "--hand", "parallel_jaw", "--workers", "-1", "--out", "out"],
+            "--workers must be >= 0",
+        ),
+    ],
+)
+def test_bad_command_options_give_one_line_and_write_nothing(arguments, expected, tmp_path):
+    result = subprocess.run(
+        [sys.executable, "-m", "pipeline", *arguments],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+    )
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1 and expected in result.stderr, result.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_point_cloud_with_and_without_normals(tmp_path):
     import open3d
 

@@ -1,6 +1,16 @@
 """``batch FOLDER --hand H --out DIR``: every mesh of a folder, one Ray task each."""
 
-from .options import add_checks, add_params, add_seed, add_spheres, command_params, only_stems, stderr, subcommand
+from .options import (
+    add_checks,
+    add_params,
+    add_seed,
+    add_spheres,
+    checked_workers,
+    command_params,
+    only_stems,
+    stderr,
+    subcommand,
+)
 
 
 def add(commands, prog):
@@ -48,6 +58,7 @@ def run(args):
     from ..hands.spec import get_hand
 
     params, _ = command_params(args)
+    workers = checked_workers(args.workers)
     for hand in args.hand:
         get_hand(hand)  # an unknown hand fails here, in one line, before Ray starts
     meshes = select_meshes(find_meshes(args.folder), folder=args.folder, only=only_stems(args), limit=args.limit)
@@ -60,7 +71,7 @@ def run(args):
         scale=args.scale,
         seed=args.seed,
         address=args.address,
-        workers=args.workers,
+        workers=workers,
         progress=stderr,
     )
     print(

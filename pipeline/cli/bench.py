@@ -44,9 +44,20 @@ def add(commands, prog):
 
 def run(args):
     from ..bench import run_bench
+    from ..errors import BadParamsError
 
+    sizes = args.sizes.split(",")
+    if not all(size.strip().isdigit() and int(size) > 0 for size in sizes):
+        raise BadParamsError(f"bench: --sizes must be positive sample counts, comma-separated, got {args.sizes!r}")
+    for name, value, least in (
+        ("--repeats", args.repeats, 1),
+        ("--trials", args.trials, 1),
+        ("--reference-trials", args.reference_trials, 0),
+    ):
+        if value < least:
+            raise BadParamsError(f"bench: {name} must be >= {least}, got {value}")
     run_bench(
-        sizes=[int(size) for size in args.sizes.split(",")],
+        sizes=[int(size) for size in sizes],
         repeats=args.repeats,
         json_path=args.json,
         trials=args.trials,

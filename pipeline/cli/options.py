@@ -6,6 +6,7 @@ import dataclasses
 import sys
 from pathlib import Path
 
+from ..errors import BadParamsError
 from ..params import Params, load_params
 from ..stage_io import PARAMS_FILE
 
@@ -93,11 +94,19 @@ def command_params(args):
     return params, params.seed if seed is None else seed
 
 
+def checked_workers(workers):
+    """``--workers`` as given (None: not given), refused in one line if negative."""
+    if workers is not None and workers < 0:
+        raise BadParamsError(f"--workers must be >= 0 (0: every core), got {workers}")
+    return workers
+
+
 def command_workers(args, params):
     """Processes of a command: ``--workers``, else the params' simulate.workers (0 = every core)."""
     from ..pool import default_workers
 
-    return default_workers(params.simulate.workers if args.workers is None else args.workers)
+    workers = checked_workers(args.workers)
+    return default_workers(params.simulate.workers if workers is None else workers)
 
 
 def only_stems(args):

@@ -12,6 +12,7 @@ from .options import (
     add_seed,
     add_spheres,
     add_workers,
+    checked_workers,
     command_params,
     stderr,
     subcommand,
@@ -70,7 +71,7 @@ def run(args):
             seed=seed,
             hands=hands,
             simulate=not args.no_simulate,
-            workers=args.workers,
+            workers=checked_workers(args.workers),
             progress=stderr,
             trial_progress=trial_progress,
         )
