@@ -61,6 +61,7 @@ def run(args):
     from ..plan import run_chain, summary, warning_lines, write_plan
 
     params, seed = command_params(args)
+    workers = checked_workers(args.workers)
     hands = args.hand or list(params.candidates.hands)
     with progress_bar("simulate") as trial_progress, warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("default")  # each distinct warning once, as the DVC stages log them
@@ -71,7 +72,7 @@ def run(args):
             seed=seed,
             hands=hands,
             simulate=not args.no_simulate,
-            workers=checked_workers(args.workers),
+            workers=workers,
             progress=stderr,
             trial_progress=trial_progress,
         )
