@@ -231,10 +231,11 @@ def test_results_do_not_depend_on_the_batch():
 
 def test_measures_and_collision_tests_in_blocks_change_no_trial(monkeypatch):
     """The measure runs its pairs through the exact queries in blocks of about ``BLOCK_COVERS``
-    cover spheres, the collision test its hands in blocks of about ``BLOCK_POINTS`` link points,
-    to bound their memory. A pair's distance and touches are its own, and a hand's collision
-    too, so Barrett trials on a cylinder run one pair (one hand) a block are the trials run in
-    one block, bit for bit: outcomes, quality, joints, closing steps and every contact."""
+    cover spheres, the collision test its hands in blocks of about ``BLOCK_POINTS`` link points
+    (the point test) and ``BLOCK_COVERS`` cover spheres (the vertex test), to bound their memory.
+    A pair's distance and touches are its own, and a hand's collision too, so Barrett trials on a
+    cylinder run one pair (one hand) a block are the trials run in one block, bit for bit:
+    outcomes, quality, joints, closing steps and every contact."""
     from pipeline.trial import proximity
 
     cylinder = surface("primitive:cylinder", radius=0.025, height=0.12)
@@ -245,8 +246,12 @@ def test_measures_and_collision_tests_in_blocks_change_no_trial(monkeypatch):
     approach /= np.linalg.norm(approach, axis=1, keepdims=True)
     orient = np.cross(approach, [0.0, 1.0, 0.0])
     engine = GraspEngine(cylinder, HANDS["barrett"])
-    blocks, hands = [], []
-    measure_close, points_inside = proximity._measure_close, proximity._points_inside
+    blocks, hands, vertex_hands = [], [], []
+    measure_close, points_inside, vertex_side = (
+        proximity._measure_close,
+        proximity._points_inside,
+        proximity._vertex_side,
+    )
 
     def measured(*args):
         blocks.append(len(args[5]))  # the pairs of this block
@@ -256,16 +261,24 @@ def test_measures_and_collision_tests_in_blocks_change_no_trial(monkeypatch):
         hands.append(len(np.unique(rows[unsure])))  # the hands of this block
         return points_inside(mesh, model, flat, rows, links, unsure, *rest)
 
+    def vertex_tested(features, model, flat, slot, pair, *rest, floor, keep):
+        if floor == -np.inf:  # the collision test's (a measure's has floor 0)
+            vertex_hands.append(len(np.unique(slot[pair] // len(model.links))))
+        return vertex_side(features, model, flat, slot, pair, *rest, floor=floor, keep=keep)
+
     monkeypatch.setattr(proximity, "_measure_close", measured)
     monkeypatch.setattr(proximity, "_points_inside", tested)
+    monkeypatch.setattr(proximity, "_vertex_side", vertex_tested)
     whole = engine.run(grasp, approach, orient, [None] * count)
-    assert max(blocks) > 1 and max(hands) > 1  # some blocks hold several pairs, several hands
+    # some blocks hold several pairs, several hands
+    assert max(blocks) > 1 and max(hands) > 1 and max(vertex_hands) > 1
     blocks.clear()
     hands.clear()
+    vertex_hands.clear()
     monkeypatch.setattr(proximity, "BLOCK_COVERS", 1)
     monkeypatch.setattr(proximity, "BLOCK_POINTS", 1)
     split = engine.run(grasp, approach, orient, [None] * count)
-    assert set(blocks) == {1} and set(hands) == {1}
+    assert set(blocks) == {1} and set(hands) == {1} and set(vertex_hands) <= {0, 1}
     assert sum(result.outcome in ("force_closure", "no_force_closure") for result in whole) >= 8
     for one, other in zip(whole, split):
         assert (one.outcome, one.epsilon, one.joint_positions, one.close_steps, one.touched) == (

@@ -93,9 +93,10 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
 
 
 #: how much a measure or a collision test takes at once: a measure's pairs go through their
-#: exact queries in runs of about this many cover spheres of their links, a collision test's
-#: hands in runs of about this many link points (:func:`_runs`), so that their temporaries stay
-#: near 20 MB however many hands they take. In one run, measuring 1,024 closed franka hands at
+#: exact queries, and a collision test's hands through its vertex test, in runs of about this
+#: many cover spheres of their links, and a collision test's hands through its point test in
+#: runs of about this many link points (:func:`_runs`), so that their temporaries stay near
+#: 20 MB however many hands they take. In one run, measuring 1,024 closed franka hands at
 #: once took 131 MB (1.3 million cover spheres), which a fresh trial worker's first chunk had to
 #: fault in from the system
 BLOCK_COVERS, BLOCK_POINTS = 1 << 17, 1 << 17
@@ -487,7 +488,9 @@ def collides(mesh, model, poses, *, overlap=None, along=None):
         _points_inside(mesh, model, flat, rows, links, run, starts, along, hit, deepest)
     unsure = unsure[~hit[rows[unsure]]]  # the vertex test only where no link point is inside
     deepest_feature = np.full(len(slot), np.inf)
-    covers = _covers(mesh, model, flat, slot, unsure)
-    _vertex_side(mesh.features, model, flat, slot, *covers, 0.0, deepest_feature, floor=-np.inf, keep=-np.inf)
+    covers = np.diff(model.link_cover_start)
+    for run in _runs(unsure, covers[links[unsure]], rows[unsure], BLOCK_COVERS):
+        spheres = _covers(mesh, model, flat, slot, run)
+        _vertex_side(mesh.features, model, flat, slot, *spheres, 0.0, deepest_feature, floor=-np.inf, keep=-np.inf)
     hit[rows[deepest_feature < -overlap]] = True
     return hit, -deepest
