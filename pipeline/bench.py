@@ -27,7 +27,7 @@ from .hands.spec import HANDS
 from .params import CandidatesParams, ClassifyParams, MatParams, MedialAxisParams, Params, SampleParams, SimulateParams
 from .pool import default_workers
 from .trial.engine import GraspEngine
-from .trial.protocol import CHUNK, run_trials, trial_tables
+from .trial.protocol import CHUNK, chunks, run_trials, trial_tables
 
 #: run_trials' batches in the trial bench: a small and a median default simulate stage (make
 #: run's run up to 3,276 trials, median about 2,000)
@@ -317,6 +317,31 @@ def free_workers_ratio(one_core, all_cores, cores):
     return (one_core["set-up"] + one_core["caller"]) / (all_cores["set-up"] + one_core["caller"] / cores)
 
 
+def chunks_seconds(engine, targets, rounds, workers):
+    """Seconds of ``engine`` (set up, in this process) on the candidates ``targets`` (grasp,
+    approach, orient (n, 3), preshapes (n,)) in one run and in each of the chunks that
+    :func:`pipeline.trial.protocol.run_trials` deals them to on ``workers`` processes, alone,
+    in ``rounds`` interleaved rounds (:func:`interleaved_seconds`): {"whole": (rounds,) float
+    array, 0: the first chunk's, 1: ...}."""
+    count = len(targets[0])
+
+    def run(rows):
+        picked = (*(values[rows] for values in targets[:3]), [targets[3][row] for row in rows])
+        return lambda: engine.run(*picked)
+
+    parts = {number: run(rows) for number, (_, rows) in enumerate(chunks([0], [count], workers))}
+    return interleaved_seconds({"whole": run(np.arange(count)), **parts}, rounds)
+
+
+def chunked_ratio(one_core, all_cores, whole, parts):
+    """The ratio of a :func:`run_trials` call on as many cores as chunks to one on one core had
+    its workers cost nothing but their chunks' own time: one core's set-up (from ``one_core``,
+    its :func:`timeline_parts`) and ``whole`` (s, the trials in one chunk) over all cores'
+    set-up (``all_cores``) and the longest of ``parts`` (s, each chunk's trials alone). Where
+    the chunks cost more than the whole, this is the most the pool can reach."""
+    return (one_core["set-up"] + whole) / (all_cores["set-up"] + max(parts))
+
+
 def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     """Grasp trials per second per hand on a ~17k-triangle duck, the engine
     (:mod:`pipeline.trial.engine`, batched) on random MAT candidates, one core; where its time
@@ -326,8 +351,9 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     ``simulate`` stage's tables (:data:`STAGE_BATCH`: MAT and baseline) on one core
     (:func:`one_core`), in one process and on every core, in ``repeats`` interleaved rounds
     (:func:`interleaved_seconds`): rates are medians, ratios the median of each round's, and where
-    the one-core and all-core calls' time went (:func:`timeline_parts`, medians). Returns
-    the rows. (The engine it replaced, one pybullet trial at a time, is gone; its rates beside
+    the one-core and all-core calls' time went (:func:`timeline_parts`, medians); and the
+    engine's sample in one chunk against the chunks run_trials deals it to, each alone on one
+    core (:func:`chunks_seconds`, :func:`chunked_ratio`). Returns the rows. (The engine it replaced, one pybullet trial at a time, is gone; its rates beside
     this one's are in docs/benchmarks.md.)"""
     from . import pool
     from .trial.reference import ReferenceEngine
@@ -362,7 +388,9 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
         "mesh and engines) and the trials; on all cores starting the threads that fork the workers, the set-up, the engines' copy for the "
         "workers, the trials in this process and in the busiest worker (its first chunk's start after this "
         "process's), its results' trip back, and the rest of the call after them; the ratio had the workers cost "
-        "nothing (these set-ups, one core's trials shared by the cores)"
+        "nothing (these set-ups, one core's trials shared by the cores); then the engine's sample alone on one core "
+        "in one chunk and in the chunks run_trials deals it to (medians), and the ratio had the workers cost "
+        "nothing but those chunks' own time"
     )
     rows = []
     for name, hand in HANDS.items():
@@ -378,6 +406,14 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
             for result in engine.run(*(values[first : first + CHUNK] for values in targets))
         ]
         new_rate = len(table) / (time.perf_counter() - start)
+        steps = dict(engine.seconds)
+        # the same trials in one chunk and in the chunks run_trials deals them to, each alone on
+        # one core: what splitting them costs before any worker does
+        with one_core():
+            split = {
+                name: float(np.median(values))
+                for name, values in chunks_seconds(engine, targets, repeats, cores).items()
+            }
         rates, ratios, parts = {}, {}, {}
         # a batch of distinct candidates, as a simulate stage's: the engine's first, then the
         # object's others (each process's chunk a sample of them; 512 candidates repeated would
@@ -426,7 +462,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
             for key in ("core", "process"):
                 ratios[batch, key] = float(np.median(seconds[key] / seconds["all"]))
         outcomes = Counter(result.outcome for result in new)
-        share = "/".join(f"{seconds:.1f}" for seconds in engine.seconds.values())
+        share = "/".join(f"{seconds:.1f}" for seconds in steps.values())
         row = dict(
             hand=name,
             trials=len(table),
@@ -446,7 +482,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
                 )
                 for batch in batches
             ],
-            seconds=engine.seconds,
+            seconds=steps,
             outcomes=dict(outcomes),
         )
         rows.append(row)
@@ -470,6 +506,20 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
                 f"its results {every['results']:.3f}, after {every['after']:.3f}; "
                 f"ratio with free workers {free_workers_ratio(one, every, cores):.2f}"
             )
+        whole, pieces = split["whole"], [value for key, value in split.items() if key != "whole"]
+        ratio = chunked_ratio(parts[TRIAL_BATCHES[0], "core"], parts[TRIAL_BATCHES[0], "all"], whole, pieces)
+        row["chunks"] = dict(
+            trials=len(table),
+            whole_s=round(whole, 4),
+            chunks_s=[round(value, 4) for value in pieces],
+            ratio_with_chunks=round(ratio, 2),
+        )
+        out(
+            f"    the engine's {len(table)} trials alone on one core, s: {whole:.3f} in one chunk, "
+            f"{' + '.join(f'{value:.3f}' for value in pieces)} in run_trials' {len(pieces)} "
+            f"(+{sum(pieces) / whole - 1:.1%}, the longest {max(pieces) * len(pieces) / whole - 1:+.1%} over an even share); "
+            f"ratio with these chunks and the {TRIAL_BATCHES[0]} set-ups {ratio:.2f}"
+        )
         if not reference_trials:
             continue
         reference = ReferenceEngine(surface, hand, settings)

@@ -4,6 +4,7 @@ import cProfile
 import pstats
 import time
 
+import numpy as np
 import pytest
 
 from pipeline.bench import STAGE_PARTS, _profile_parts
@@ -153,3 +154,35 @@ def test_the_ratio_with_free_workers_shares_one_cores_trials_after_the_all_core_
     assert abs(free_workers_ratio({"set-up": 0.3, "caller": 0.6}, {"set-up": 0.15}, 2) - 0.9 / 0.45) < 1e-12
     # a set-up that no core shares bounds it below the core count
     assert abs(free_workers_ratio({"set-up": 0.3, "caller": 0.6}, {"set-up": 0.3}, 2) - 0.9 / 0.6) < 1e-12
+
+
+def test_the_chunks_bench_runs_the_sample_whole_and_in_run_trials_own_chunks():
+    from pipeline.bench import chunks_seconds
+    from pipeline.trial.protocol import chunks
+
+    class Engine:  # records the candidates of each run
+        def __init__(self):
+            self.runs = []
+
+        def run(self, grasp, approach, orient, preshapes):
+            self.runs.append((grasp[:, 0].astype(int).tolist(), list(preshapes)))
+
+    count = 10
+    grasp = np.arange(count, dtype=float)[:, None] * np.ones(3)
+    targets = (grasp, grasp + 1, grasp + 2, [f"shape{row}" for row in range(count)])
+    engine = Engine()
+    seconds = chunks_seconds(engine, targets, 3, 2)
+    assert list(seconds) == ["whole", 0, 1] and all(len(values) == 3 for values in seconds.values())
+    dealt = [trials.tolist() for _, trials in chunks([0], [count], 2)]
+    # each round: the whole sample, then each chunk, with the preshapes of its own rows
+    assert engine.runs == [(rows, [f"shape{row}" for row in rows]) for rows in [list(range(count)), *dealt]] * 3
+    assert sorted(dealt[0] + dealt[1]) == list(range(count))
+
+
+def test_the_ratio_with_chunks_divides_one_cores_whole_by_the_longest_chunk_after_the_set_up():
+    from pipeline.bench import chunked_ratio
+
+    # 0.4 s set-up and 1.4 s of trials on one core; 0.25 s set-up and chunks of 0.75 and 0.8 s
+    assert abs(chunked_ratio({"set-up": 0.4}, {"set-up": 0.25}, 1.4, [0.75, 0.8]) - 1.8 / 1.05) < 1e-12
+    # chunks that cost no more than an even share of the whole: the set-ups alone bound it
+    assert abs(chunked_ratio({"set-up": 0.3}, {"set-up": 0.15}, 0.6, [0.3, 0.3]) - 0.9 / 0.45) < 1e-12
