@@ -761,13 +761,37 @@ def occupancy(spans):
     return {running: seconds for running, seconds in sorted(found.items()) if seconds > 0}
 
 
+def lane_gaps(spans):
+    """The waits between one stage and the next of the same lane, from the stages' ``spans``
+    ((start, end, name) each, s; a name ``object/stage``): each stage goes to a lane that was
+    free when it started (a new lane if none was), the one whose last stage was of the same
+    object if any (a lane runs an object's stages in a row), else the one that freed last.
+    Returns (seconds, name before, name after) per wait, in start order."""
+    lanes, gaps = [], []  # each lane: [end, name] of its last stage
+
+    def rank(lane, name):
+        return lane[1].partition("/")[0] == name.partition("/")[0], lane[0]
+
+    for start, end, name in sorted(spans):
+        free = [lane for lane in lanes if lane[0] <= start]
+        if free:
+            lane = max(free, key=lambda lane: rank(lane, name))
+            gaps.append((start - lane[0], lane[1], name))
+            lane[:] = [end, name]
+        else:
+            lanes.append([end, name])
+    return gaps
+
+
 def run_occupancy_bench(*, logs="logs", out=print):
     """How the last ``dvc repro`` (``make run``) kept the cores busy, from the stage logs under
     ``logs``: each stage from its ``/stage`` start message to its end (its process start and
     imports before them count as not running). Prints the stages, the time from the first start
     to the last end, the stages' own seconds, and the seconds with 0, 1, 2, ... stages running:
     fewer than the lanes is DVC's work between stages, process starts, the kernels' compilation
-    and a lane waiting at the end; returns the row."""
+    and a lane waiting at the end. Then the waits between one stage and the next of a lane
+    (:func:`lane_gaps`): DVC's own work after a stage and before the next, and the next one's
+    process start and imports. Returns the row."""
     from pathlib import Path
 
     from mcap.reader import make_reader
@@ -779,16 +803,25 @@ def run_occupancy_bench(*, logs="logs", out=print):
         with open(path, "rb") as stream:
             times = [message.log_time / 1e9 for _, _, message in make_reader(stream).iter_messages(topics=["/stage"])]
         if len(times) == 2:
-            spans.append((min(times), max(times)))
+            folder = path.relative_to(logs).parts[:-1]
+            spans.append((min(times), max(times), f"{folder[0]}/{path.stem}" if folder else path.stem))
     if not spans:
         raise BadInputError(f"{logs}: no stage logs; `make run` (or dvc repro) writes them")
-    levels = occupancy(spans)
-    first, last = min(start for start, _ in spans), max(end for _, end in spans)
+    levels = occupancy([(start, end) for start, end, _ in spans])
+    first, last = min(start for start, _, _ in spans), max(end for _, end, _ in spans)
+    gaps = lane_gaps(spans)
+    waits = np.array([seconds for seconds, _, _ in gaps])
     row = dict(
         stages=len(spans),
         span_s=last - first,
-        stage_s=sum(end - start for start, end in spans),
+        stage_s=sum(end - start for start, end, _ in spans),
         running_s=levels,
+        waits=dict(
+            count=len(gaps),
+            seconds=float(waits.sum()),
+            median_s=float(np.median(waits)) if len(gaps) else float("nan"),
+            p90_s=float(np.percentile(waits, 90)) if len(gaps) else float("nan"),
+        ),
     )
     out(
         f"the stage logs under {logs}: {row['stages']} stages over {row['span_s']:.0f} s, {row['stage_s']:.0f} s of stage work"
@@ -796,6 +829,12 @@ def run_occupancy_bench(*, logs="logs", out=print):
     out("stages running  seconds")
     for running, seconds in levels.items():
         out(f"{running:14d}  {seconds:7.0f}")
+    if gaps:
+        out(
+            f"between two stages of a lane (DVC's work after one and before the next, its process start and "
+            f"imports; the lanes told apart by the objects): {len(gaps)} waits, {waits.sum():.0f} s in all, median "
+            f"{np.median(waits):.2f} s, 90 % within {np.percentile(waits, 90):.2f} s"
+        )
     return row
 
 

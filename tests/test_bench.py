@@ -72,6 +72,8 @@ def test_the_run_table_reads_each_stage_from_its_logs_start_and_end(tmp_path):
     assert row["stages"] == 2 and set(row["running_s"]) == {0, 1}
     assert row["running_s"][1] == pytest.approx(row["stage_s"]) and row["stage_s"] >= 0.1
     assert row["span_s"] == pytest.approx(row["stage_s"] + row["running_s"][0]) and row["running_s"][0] >= 0.05
+    # one lane: the wait between its two stages is the gap with none running
+    assert row["waits"]["count"] == 1 and row["waits"]["seconds"] == pytest.approx(row["running_s"][0])
 
 
 def test_interleaved_rounds_keep_a_ratio_exact_while_the_machine_slows_down():
@@ -186,3 +188,16 @@ def test_the_ratio_with_chunks_divides_one_cores_whole_by_the_longest_chunk_afte
     assert abs(chunked_ratio({"set-up": 0.4}, {"set-up": 0.25}, 1.4, [0.75, 0.8]) - 1.8 / 1.05) < 1e-12
     # chunks that cost no more than an even share of the whole: the set-ups alone bound it
     assert abs(chunked_ratio({"set-up": 0.3}, {"set-up": 0.15}, 0.6, [0.3, 0.3]) - 0.9 / 0.45) < 1e-12
+
+
+def test_lane_gaps_give_each_stage_the_lane_that_freed_last_before_it():
+    from pipeline.bench import lane_gaps
+
+    # two lanes: a (0-10) and b (5-15) at once; c starts 0.5 s after a ended (b still runs);
+    # d starts at 16, when both lanes are free: after b, which ended last (1 s before)
+    spans = [(16.0, 18.0, "d"), (0.0, 10.0, "a"), (10.5, 12.0, "c"), (5.0, 15.0, "b")]
+    assert lane_gaps(spans) == [(0.5, "a", "c"), (1.0, "b", "d")]
+    assert lane_gaps([(0.0, 1.0, "a")]) == [] and lane_gaps([]) == []
+    # both lanes free: a stage follows its own object's lane, though the other freed later
+    spans = [(0.0, 1.0, "mug/sample"), (0.5, 2.0, "duck/sample"), (2.5, 3.0, "mug/mat")]
+    assert lane_gaps(spans) == [(1.5, "mug/sample", "mug/mat")]
