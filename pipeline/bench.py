@@ -353,8 +353,9 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     (:func:`interleaved_seconds`): rates are medians, ratios the median of each round's, and where
     the one-core and all-core calls' time went (:func:`timeline_parts`, medians); and the
     engine's sample in one chunk against the chunks run_trials deals it to, each alone on one
-    core (:func:`chunks_seconds`, :func:`chunked_ratio`). Returns the rows. (The engine it replaced, one pybullet trial at a time, is gone; its rates beside
-    this one's are in docs/benchmarks.md.)"""
+    core (:func:`chunks_seconds`, :func:`chunked_ratio`). Returns the rows. (The engine it
+    replaced, one pybullet trial at a time, is gone; its rates beside this one's are in
+    docs/benchmarks.md.)"""
     from . import pool
     from .trial.reference import ReferenceEngine
 
