@@ -222,12 +222,18 @@ def drawn_first(candidates, trials):
     return pd.concat([drawn, others], ignore_index=True)
 
 
+def candidate_targets(table):
+    """The targets of a table of candidates as :meth:`GraspEngine.run` takes them: grasp,
+    approach, orient (n, 3) and the preshapes (n,)."""
+    return vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), list(table.preshape)
+
+
 def _warm_engine(surface, candidates, hand, trials, settings):
     """``trials`` random rows of ``hand``'s MAT ``candidates`` (seeded: the first of
     :func:`drawn_first`), their targets (grasp, approach, orient, preshapes) and an engine that
     has run two of them."""
     table = drawn_first(candidates, trials).iloc[:trials]
-    targets = (vectors(table, "grasp"), vectors(table, "approach"), vectors(table, "orient"), list(table.preshape))
+    targets = candidate_targets(table)
     engine = GraspEngine(surface, hand, settings)
     # numba loads its compiled kernels on their first call (about 0.3 s a process, once): part
     # of the start-up (measured through the pool in the trial table), not of the trials
@@ -351,9 +357,9 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     ``simulate`` stage's tables (:data:`STAGE_BATCH`: MAT and baseline) on one core
     (:func:`one_core`), in one process and on every core, in ``repeats`` interleaved rounds
     (:func:`interleaved_seconds`): rates are medians, ratios the median of each round's, and where
-    the one-core and all-core calls' time went (:func:`timeline_parts`, medians); and the
-    engine's sample in one chunk against the chunks run_trials deals it to, each alone on one
-    core (:func:`chunks_seconds`, :func:`chunked_ratio`). Returns the rows. (The engine it
+    the one-core and all-core calls' time went (:func:`timeline_parts`, medians); and the first
+    batch and the stage's tables in one chunk against the chunks run_trials deals them to, each
+    alone on one core (:func:`chunks_seconds`, :func:`chunked_ratio`). Returns the rows. (The engine it
     replaced, one pybullet trial at a time, is gone; its rates beside this one's are in
     docs/benchmarks.md.)"""
     from . import pool
@@ -389,9 +395,9 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
         "mesh and engines) and the trials; on all cores starting the threads that fork the workers, the set-up, the engines' copy for the "
         "workers, the trials in this process and in the busiest worker (its first chunk's start after this "
         "process's), its results' trip back, and the rest of the call after them; the ratio had the workers cost "
-        "nothing (these set-ups, one core's trials shared by the cores); then the engine's sample alone on one core "
-        "in one chunk and in the chunks run_trials deals it to (medians), and the ratio had the workers cost "
-        "nothing but those chunks' own time"
+        "nothing (these set-ups, one core's trials shared by the cores); then the first batch and the stage's tables "
+        "alone on one core in one chunk and in the chunks run_trials deals them to (medians), and the ratio had the "
+        "workers cost nothing but those chunks' own time"
     )
     rows = []
     for name, hand in HANDS.items():
@@ -408,13 +414,6 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
         ]
         new_rate = len(table) / (time.perf_counter() - start)
         steps = dict(engine.seconds)
-        # the same trials in one chunk and in the chunks run_trials deals them to, each alone on
-        # one core: what splitting them costs before any worker does
-        with one_core():
-            split = {
-                name: float(np.median(values))
-                for name, values in chunks_seconds(engine, targets, repeats, cores).items()
-            }
         rates, ratios, parts = {}, {}, {}
         # a batch of distinct candidates, as a simulate stage's: the engine's first, then the
         # object's others (each process's chunk a sample of them; 512 candidates repeated would
@@ -436,6 +435,20 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
             )
         ]
         sizes = {batch: sum(len(table) for _, table in tables) for batch, tables in runs.items()}
+        # the engine's sample and the stage's tables, each in one chunk and in the chunks
+        # run_trials deals it to, alone on one core: what splitting them costs before any worker does
+        samples = {
+            TRIAL_BATCHES[0]: targets,
+            STAGE_BATCH: candidate_targets(pd.concat([table for _, table in runs[STAGE_BATCH]], ignore_index=True)),
+        }
+        with one_core():
+            split = {
+                batch: {
+                    name: float(np.median(values))
+                    for name, values in chunks_seconds(engine, these, repeats, cores).items()
+                }
+                for batch, these in samples.items()
+            }
         for batch in batches:
             timelines = defaultdict(list)
 
@@ -507,20 +520,26 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
                 f"its results {every['results']:.3f}, after {every['after']:.3f}; "
                 f"ratio with free workers {free_workers_ratio(one, every, cores):.2f}"
             )
-        whole, pieces = split["whole"], [value for key, value in split.items() if key != "whole"]
-        ratio = chunked_ratio(parts[TRIAL_BATCHES[0], "core"], parts[TRIAL_BATCHES[0], "all"], whole, pieces)
-        row["chunks"] = dict(
-            trials=len(table),
-            whole_s=round(whole, 4),
-            chunks_s=[round(value, 4) for value in pieces],
-            ratio_with_chunks=round(ratio, 2),
-        )
-        out(
-            f"    the engine's {len(table)} trials alone on one core, s: {whole:.3f} in one chunk, "
-            f"{' + '.join(f'{value:.3f}' for value in pieces)} in run_trials' {len(pieces)} "
-            f"(+{sum(pieces) / whole - 1:.1%}, the longest {max(pieces) * len(pieces) / whole - 1:+.1%} over an even share); "
-            f"ratio with these chunks and the {TRIAL_BATCHES[0]} set-ups {ratio:.2f}"
-        )
+        row["chunks"] = []
+        for batch, found in split.items():
+            whole, pieces = found["whole"], [value for key, value in found.items() if key != "whole"]
+            ratio = chunked_ratio(parts[batch, "core"], parts[batch, "all"], whole, pieces)
+            row["chunks"].append(
+                dict(
+                    batch=batch,
+                    trials=len(samples[batch][0]),
+                    whole_s=round(whole, 4),
+                    chunks_s=[round(value, 4) for value in pieces],
+                    ratio_with_chunks=round(ratio, 2),
+                )
+            )
+            label = f"the stage's {sizes[batch]}" if batch == STAGE_BATCH else f"the first {len(samples[batch][0])}"
+            out(
+                f"    {label} trials alone on one core, s: {whole:.3f} in one chunk, "
+                f"{' + '.join(f'{value:.3f}' for value in pieces)} in run_trials' {len(pieces)} "
+                f"(+{sum(pieces) / whole - 1:.1%}, the longest {max(pieces) * len(pieces) / whole - 1:+.1%} over an even "
+                f"share); ratio with these chunks and the batch's set-ups {ratio:.2f}"
+            )
         if not reference_trials:
             continue
         reference = ReferenceEngine(surface, hand, settings)
