@@ -850,10 +850,11 @@ def run_occupancy_bench(*, logs="logs", out=print):
     for running, seconds in levels.items():
         out(f"{running:14d}  {seconds:7.0f}")
     if gaps:
+        waited = row["waits"]
         out(
             f"between two stages of a lane (DVC's work after one and before the next, its process start and "
-            f"imports; the lanes told apart by the objects): {len(gaps)} waits, {waits.sum():.0f} s in all, median "
-            f"{np.median(waits):.2f} s, 90 % within {np.percentile(waits, 90):.2f} s"
+            f"imports; the lanes told apart by the objects): {waited['count']} waits, {waited['seconds']:.0f} s in all, "
+            f"median {waited['median_s']:.2f} s, 90 % within {waited['p90_s']:.2f} s"
         )
     return row
 
