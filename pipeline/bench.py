@@ -323,12 +323,11 @@ def free_workers_ratio(one_core, all_cores, cores):
     return (one_core["set-up"] + one_core["caller"]) / (all_cores["set-up"] + one_core["caller"] / cores)
 
 
-def chunks_seconds(engine, targets, rounds, workers):
-    """Seconds of ``engine`` (set up, in this process) on the candidates ``targets`` (grasp,
-    approach, orient (n, 3), preshapes (n,)) in one run and in each of the chunks that
-    :func:`pipeline.trial.protocol.run_trials` deals them to on ``workers`` processes, alone,
-    in ``rounds`` interleaved rounds (:func:`interleaved_seconds`): {"whole": (rounds,) float
-    array, 0: the first chunk's, 1: ...}."""
+def _chunk_runs(engine, targets, workers):
+    """Calls of ``engine`` (set up, in this process) on the candidates ``targets`` (grasp,
+    approach, orient (n, 3), preshapes (n,)): {"whole": all of them in one run, 0: the first of
+    the chunks :func:`pipeline.trial.protocol.run_trials` deals them to on ``workers``
+    processes, 1: ...}."""
     count = len(targets[0])
 
     def run(rows):
@@ -336,7 +335,53 @@ def chunks_seconds(engine, targets, rounds, workers):
         return lambda: engine.run(*picked)
 
     parts = {number: run(rows) for number, (_, rows) in enumerate(chunks([0], [count], workers))}
-    return interleaved_seconds({"whole": run(np.arange(count)), **parts}, rounds)
+    return {"whole": run(np.arange(count)), **parts}
+
+
+def chunks_seconds(engine, targets, rounds, workers):
+    """Seconds of :func:`_chunk_runs`, each alone, in ``rounds`` interleaved rounds
+    (:func:`interleaved_seconds`): {"whole": (rounds,) float array, 0: the first chunk's, 1: ...}."""
+    return interleaved_seconds(_chunk_runs(engine, targets, workers), rounds)
+
+
+def own_time_parts(stats):
+    """Seconds of a profile (a ``pstats.Stats``) by where each function's own time went:
+    {"kernels": this process's compiled kernels (numba dispatchers, looked up by module file
+    and name), "open3d": open3d's queries, "calls": the rest, the Python and numpy calls around
+    them}."""
+    import sys
+
+    from numba.core.dispatcher import Dispatcher
+
+    modules = {getattr(module, "__file__", None): module for module in list(sys.modules.values())}
+    found = dict.fromkeys(("kernels", "open3d", "calls"), 0.0)
+    for (filename, _, function), (_, _, own, _, _) in stats.stats.items():
+        if isinstance(getattr(modules.get(filename), function, None), Dispatcher):
+            found["kernels"] += own
+        elif "open3d" in function:
+            found["open3d"] += own
+        else:
+            found["calls"] += own
+    return found
+
+
+def chunks_own_time(engine, targets, workers):
+    """:func:`own_time_parts` of :func:`_chunk_runs`, profiled once: {"whole": the run in one
+    chunk, "chunks": the chunks' runs one after another}. (The profiler slows the calls around the
+    kernels most, so these are shares, not the runs' times.)"""
+    import cProfile
+    import pstats
+
+    runs = _chunk_runs(engine, targets, workers)
+    found = {}
+    for name, calls in (("whole", [runs.pop("whole")]), ("chunks", list(runs.values()))):
+        profile = cProfile.Profile()
+        profile.enable()
+        for call in calls:
+            call()
+        profile.disable()
+        found[name] = own_time_parts(pstats.Stats(profile))
+    return found
 
 
 def chunked_ratio(one_core, all_cores, whole, parts):
@@ -359,7 +404,8 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     (:func:`interleaved_seconds`): rates are medians, ratios the median of each round's, and where
     the one-core and all-core calls' time went (:func:`timeline_parts`, medians); and the first
     batch and the stage's tables in one chunk against the chunks run_trials deals them to, each
-    alone on one core (:func:`chunks_seconds`, :func:`chunked_ratio`). Returns the rows. (The engine it
+    alone on one core (:func:`chunks_seconds`, :func:`chunked_ratio`), and where the first
+    batch's own time goes in each (:func:`chunks_own_time`). Returns the rows. (The engine it
     replaced, one pybullet trial at a time, is gone; its rates beside this one's are in
     docs/benchmarks.md.)"""
     from . import pool
@@ -397,7 +443,8 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
         "process's), its results' trip back, and the rest of the call after them; the ratio had the workers cost "
         "nothing (these set-ups, one core's trials shared by the cores); then the first batch and the stage's tables "
         "alone on one core in one chunk and in the chunks run_trials deals them to (medians), and the ratio had the "
-        "workers cost nothing but those chunks' own time"
+        "workers cost nothing but those chunks' own time; last, the first batch's own time in one chunk and in those "
+        "chunks, profiled: in the compiled kernels, in open3d's queries, and in the Python and numpy calls around them"
     )
     rows = []
     for name, hand in HANDS.items():
@@ -449,6 +496,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
                 }
                 for batch, these in samples.items()
             }
+            own_time = chunks_own_time(engine, samples[TRIAL_BATCHES[0]], cores)
         for batch in batches:
             timelines = defaultdict(list)
 
@@ -540,6 +588,16 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
                 f"(+{sum(pieces) / whole - 1:.1%}, the longest {max(pieces) * len(pieces) / whole - 1:+.1%} over an even "
                 f"share); ratio with these chunks and the batch's set-ups {ratio:.2f}"
             )
+        row["own_time"] = {
+            name: {key: round(value, 4) for key, value in found.items()} for name, found in own_time.items()
+        }
+        whole, dealt = own_time["whole"], own_time["chunks"]
+        out(
+            f"    the first {len(targets[0])} trials' own time on one core (cProfile), s: in one chunk "
+            + ", ".join(f"{key} {value:.3f}" for key, value in whole.items())
+            + "; in run_trials' chunks "
+            + ", ".join(f"{key} {value:.3f} ({value - whole[key]:+.3f})" for key, value in dealt.items())
+        )
         if not reference_trials:
             continue
         reference = ReferenceEngine(surface, hand, settings)

@@ -6,6 +6,7 @@ import time
 
 import numpy as np
 import pytest
+from numba import njit
 
 from pipeline.bench import STAGE_PARTS, _profile_parts
 
@@ -201,3 +202,39 @@ def test_lane_gaps_give_each_stage_the_lane_that_freed_last_before_it():
     # both lanes free: a stage follows its own object's lane, though the other freed later
     spans = [(0.0, 1.0, "mug/sample"), (0.5, 2.0, "duck/sample"), (2.5, 3.0, "mug/mat")]
     assert lane_gaps(spans) == [(1.5, "mug/sample", "mug/mat")]
+
+
+@njit(cache=False)
+def _kernel_sum(count):
+    total = 0.0
+    for step in range(count):
+        total += step * 0.5
+    return total
+
+
+def test_own_time_parts_put_numba_kernels_open3d_and_the_rest_apart():
+    from pipeline.bench import own_time_parts
+
+    class Stats:  # a pstats.Stats' table: (file, line, name) -> (calls, calls, own s, cumulative s, callers)
+        stats = {
+            (__file__, 1, "_kernel_sum"): (2, 2, 0.5, 0.5, {}),
+            ("~", 0, "<built-in method open3d.pybind.t.geometry.compute_closest_points>"): (3, 3, 0.25, 0.25, {}),
+            (__file__, 2, "read_inputs"): (1, 1, 0.125, 0.375, {}),  # a Python function of the same module
+            ("~", 0, "<method 'reduce' of 'numpy.ufunc' objects>"): (9, 9, 0.0625, 0.0625, {}),
+        }
+
+    assert own_time_parts(Stats()) == {"kernels": 0.5, "open3d": 0.25, "calls": 0.1875}
+
+
+def test_a_profiled_numba_kernel_counts_as_a_kernel_not_as_the_calls_around_it():
+    from pipeline.bench import own_time_parts
+
+    count = 20_000_000
+    _kernel_sum(10)  # compiled before the profile
+    profile = cProfile.Profile()
+    profile.enable()
+    assert _kernel_sum(count) == 0.5 * count * (count - 1) / 2
+    profile.disable()
+    parts = own_time_parts(pstats.Stats(profile))
+    # the kernel's loop is the profile's time: the call around it is a few microseconds
+    assert parts["kernels"] > 0 and parts["calls"] < parts["kernels"] and parts["open3d"] == 0.0
