@@ -382,6 +382,56 @@ def test_every_link_point_lies_in_the_cover_sphere_that_culls_it(name, refine):
 
 
 @pytest.mark.parametrize("name", sorted(HANDS))
+def test_the_measures_compiled_gathers_give_numpys_spheres_points_and_bounds_bit_for_bit(name):
+    """The cover spheres of some (pose, link) pairs, the far ones' bounds and the other ones'
+    link points, gathered by the measure's kernels, are the spheres of each link's range with
+    the centres :func:`transform` gives, the bounds ``clearance - reach`` where that passes
+    ``near`` and the ranges' points as :func:`transform` moves them: the same floats, so the
+    trials cannot change with them."""
+    from scipy.spatial.transform import Rotation
+
+    from pipeline.hands.kinematics import transform
+    from pipeline.trial.proximity import _cover_spheres, _near_points, _sphere_floor
+
+    model = hand_model(HANDS[name], spacing=0.003)
+    rng = np.random.default_rng(1)
+    count = len(model.links)
+    poses = np.tile(np.eye(4), (3, count, 1, 1))
+    poses[..., :3, :3] = Rotation.random(3 * count, random_state=rng).as_matrix().reshape(3, count, 3, 3)
+    poses[..., :3, 3] = rng.uniform(-0.1, 0.1, (3, count, 3))
+    flat, slot = poses.reshape(-1, 4, 4), np.arange(3 * count)
+    close = np.flatnonzero(model.link_radius[slot % count] > 0)[::2]
+    pair, cover, centres = _cover_spheres(flat, slot, close, count, model.link_cover_start, model.cover_centre)
+    link = slot[close] % count
+    ranges = [np.arange(model.link_cover_start[k], model.link_cover_start[k + 1]) for k in link]
+    assert np.array_equal(cover, np.concatenate(ranges))
+    assert np.array_equal(pair, np.repeat(close, [len(r) for r in ranges]))
+    assert np.array_equal(centres, transform(flat, slot[pair], model.cover_centre[cover]))
+    clearance = rng.uniform(0.0, 0.02, len(pair))
+    near = 0.004
+    best = np.full(len(slot), np.inf)
+    kept = _sphere_floor(best, pair, cover, centres, clearance, model.cover_radius, near, np.nextafter(near, np.inf))
+    within = clearance <= model.cover_radius[cover] + near
+    for got, want in zip(kept, (pair, cover, centres, model.cover_radius[cover] + near)):
+        assert np.array_equal(got, want[within])
+    floor = np.where(within, np.nextafter(near, np.inf), clearance - model.cover_radius[cover])
+    assert np.array_equal(best[close], [floor[pair == number].min() for number in close])
+    distance = np.full(len(slot), np.inf)
+    point_pair, point, world = _near_points(
+        distance, pair, cover, clearance, model.cover_reach, near, flat, slot, model.cover_point_start, model.points
+    )
+    gap = clearance - model.cover_reach[cover]
+    far = gap > near
+    assert far.any() and not far.all()
+    lowered = [gap[far & (pair == number)].min(initial=np.inf) for number in close]
+    assert np.array_equal(distance[close], lowered)
+    ranges = [np.arange(model.cover_point_start[k], model.cover_point_start[k + 1]) for k in cover[~far]]
+    assert np.array_equal(point, np.concatenate(ranges))
+    assert np.array_equal(point_pair, np.repeat(pair[~far], [len(r) for r in ranges]))
+    assert np.array_equal(world, transform(flat, slot[point_pair], model.points[point]))
+
+
+@pytest.mark.parametrize("name", sorted(HANDS))
 def test_each_link_point_joins_its_nearest_cover_sphere_the_first_of_ties(name):
     """The cover spheres' points are assigned as the argmin of the full distance table would,
     ties to the first sphere: on a grid of centres with points midway between them, and on every

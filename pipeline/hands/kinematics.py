@@ -182,12 +182,16 @@ def transform(poses, owner, local):
 def _transform(poses, owner, local):
     world = np.empty((len(owner), 3))
     for point in range(len(owner)):
-        pose = poses[owner[point]]
-        for row in range(3):
-            world[point, row] = (
-                pose[row, 0] * local[point, 0] + pose[row, 1] * local[point, 1] + pose[row, 2] * local[point, 2]
-            ) + pose[row, 3]
+        carry(poses[owner[point]], local[point], world[point])
     return world
+
+
+@njit(cache=True)
+def carry(pose, local, world):
+    """Write into ``world`` (3,) the link-frame point ``local`` (3,) carried by ``pose`` (4, 4):
+    the one rounding of every kernel that moves link points (compiled code calls it per point)."""
+    for row in range(3):
+        world[row] = (pose[row, 0] * local[0] + pose[row, 1] * local[1] + pose[row, 2] * local[2]) + pose[row, 3]
 
 
 def _edge_points(vertices, edges, spacing, refine=1):

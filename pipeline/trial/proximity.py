@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from ..arrays import expand_ranges
-from ..hands.kinematics import transform
+from ..hands.kinematics import carry, transform
 from ..tol import tol
 
 
@@ -127,13 +127,11 @@ def _measure_close(mesh, model, features, flat, slot, close, near, tolerance, di
     )
     # link points: those of cover spheres within reach; the others are farther than
     # ``near``, bounded below by their sphere
-    far = clearance - model.cover_reach[cover] > near
-    _minimum_at(distance, pair[far], clearance[far] - model.cover_reach[cover[far]])
-    point_pair, point, world = _cover_points(model, flat, slot, pair[~far], cover[~far])
+    point_pair, point, world = _near_points(
+        distance, pair, cover, clearance, model.cover_reach, near, flat, slot, model.cover_point_start, model.points
+    )
     lower = mesh.clearance(world)
-    # a point's exact distance is at least its bound: past its link's distance so far (and
-    # the touch tolerance) it changes neither the distance nor the touches
-    exact = lower <= np.minimum(near, np.maximum(keep, distance[point_pair] + PRUNE_SLACK_M))
+    exact = _worth_exact(lower, distance, point_pair, near, keep)
     found = mesh.closest(world[exact])
     lower[exact] = found.distances
     _minimum_at(distance, point_pair, lower)
@@ -165,20 +163,101 @@ def _measure_close(mesh, model, features, flat, slot, close, near, tolerance, di
 def _covers(mesh, model, flat, slot, close):
     """The cover spheres of the pairs ``close``: their pair (k,), cover (k,), world centres (k, 3)
     and clearance (k,) m (a lower bound on their centres' distance to the object)."""
-    starts = model.link_cover_start
-    link = slot[close] % len(model.links)
-    owner, cover = expand_ranges(starts[link], np.diff(starts)[link])
-    pair = close[owner]
-    centres = transform(flat, slot[pair], model.cover_centre[cover])
+    pair, cover, centres = _cover_spheres(
+        flat, slot, close, len(model.links), model.link_cover_start, model.cover_centre
+    )
     return pair, cover, centres, mesh.clearance(centres)
 
 
-def _cover_points(model, flat, slot, pair, cover):
-    """The link points of cover spheres ``cover`` (k,) of pairs ``pair`` (k,): their pair (m,),
-    index in ``model.points`` (m,) and world positions (m, 3)."""
-    starts = model.cover_point_start
-    owner, point = expand_ranges(starts[cover], np.diff(starts)[cover])
-    return pair[owner], point, transform(flat, slot[pair[owner]], model.points[point])
+# The gathers and bounds between the exact queries, compiled: a closing pass measures a few
+# hundred pairs, where each numpy call's own cost (microseconds) outweighs its arithmetic. Each
+# float is the one numpy computed (single operations, in the same order; points moved by
+# :func:`pipeline.hands.kinematics.carry`, as :func:`transform` moves them).
+
+
+@njit(cache=True)
+def _cover_spheres(poses, slots, close, link_count, link_cover_start, cover_centre):
+    """The cover spheres of the pairs ``close`` (k,), pair ``p`` being link ``slots[p] % link_count``
+    at the pose ``poses[slots[p]]``: their pair (c,), cover (c,) and world centres (c, 3)."""
+    total = 0
+    for position in range(len(close)):
+        link = slots[close[position]] % link_count
+        total += link_cover_start[link + 1] - link_cover_start[link]
+    pair, cover, centres = np.empty(total, np.int64), np.empty(total, np.int64), np.empty((total, 3))
+    row = 0
+    for position in range(len(close)):
+        slot = slots[close[position]]
+        link = slot % link_count
+        for sphere in range(link_cover_start[link], link_cover_start[link + 1]):
+            pair[row], cover[row] = close[position], sphere
+            carry(poses[slot], cover_centre[sphere], centres[row])
+            row += 1
+    return pair, cover, centres
+
+
+@njit(cache=True)
+def _sphere_floor(best, pair, cover, centres, clearance, cover_radius, near, above_near):
+    """:func:`_vertex_side`'s bound from the cover spheres (``pair``, ``cover``, ``centres``,
+    ``clearance``, (c,) each): lowers ``best[pair]`` (in place) to ``above_near`` (the float just
+    above ``near``) for a sphere within its reach (its radius plus ``near``) of the object, to its
+    clearance less its radius for one farther; returns the pair, cover, centre and reach of
+    those within it."""
+    reach = np.empty(len(pair))
+    within = np.zeros(len(pair), np.bool_)
+    for row in range(len(pair)):
+        reach[row] = cover_radius[cover[row]] + near
+        within[row] = clearance[row] <= reach[row]
+        bound = above_near if within[row] else clearance[row] - cover_radius[cover[row]]
+        if bound < best[pair[row]]:
+            best[pair[row]] = bound
+    return pair[within], cover[within], centres[within], reach[within]
+
+
+@njit(cache=True)
+def _near_points(distance, pair, cover, clearance, cover_reach, near, poses, slots, cover_point_start, points):
+    """The link points of the cover spheres (``pair``, ``cover``, ``clearance`` (c,) each) within
+    ``near`` of the object by their reach: their pair (m,), index in ``points`` (m,) and world
+    positions (m, 3). The farther spheres lower ``distance[pair]`` (in place) to their clearance
+    less their reach, a bound on all their points."""
+    total = 0
+    far = np.zeros(len(pair), np.bool_)
+    for row in range(len(pair)):
+        gap = clearance[row] - cover_reach[cover[row]]
+        far[row] = gap > near
+        if far[row]:
+            if gap < distance[pair[row]]:
+                distance[pair[row]] = gap
+        else:
+            total += cover_point_start[cover[row] + 1] - cover_point_start[cover[row]]
+    point_pair, point, world = np.empty(total, np.int64), np.empty(total, np.int64), np.empty((total, 3))
+    found = 0
+    for row in range(len(pair)):
+        if far[row]:
+            continue
+        pose = poses[slots[pair[row]]]
+        for index in range(cover_point_start[cover[row]], cover_point_start[cover[row] + 1]):
+            point_pair[found], point[found] = pair[row], index
+            carry(pose, points[index], world[found])
+            found += 1
+    return point_pair, point, world
+
+
+@njit(cache=True)
+def _prune_limit(best, near, keep):
+    """How far (m) a point or feature may be from a link whose distance so far is ``best`` and
+    still matter: a farther one changes neither that distance (past it by
+    :data:`PRUNE_SLACK_M`) nor the touches within ``keep``; never past ``near``."""
+    return min(near, max(keep, best + PRUNE_SLACK_M))
+
+
+@njit(cache=True)
+def _worth_exact(lower, distance, point_pair, near, keep):
+    """(m,) bool: the points whose lower bound ``lower`` (m,) is within :func:`_prune_limit` of
+    their pair's ``distance`` so far: only their exact distance can change the answer."""
+    worth = np.empty(len(lower), np.bool_)
+    for row in range(len(lower)):
+        worth[row] = lower[row] <= _prune_limit(distance[point_pair[row]], near, keep)
+    return worth
 
 
 def _link_face_normal(model, flat, slot, point, offset, fallback):
@@ -210,20 +289,19 @@ def _vertex_side(features, model, flat, slot, pair, cover, centres, clearance, n
     is a face away from its edges). Returns the features at most ``keep`` from their piece:
     their pair (k,), feature (k,) and contact normal (k, 3) pointing out of the link
     (:func:`_piece_gap`)."""
-    empty = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
-    reach = model.cover_radius[cover] + near
-    needed = clearance <= reach  # a cover sphere farther than its reach holds no vertex
-    # a far cover is at least its clearance less its radius away; past a near one's reach,
-    # every feature is farther than ``near`` from it (just above near: never a touch)
-    _minimum_at(best, pair, np.where(needed, np.nextafter(near, np.inf), clearance - model.cover_radius[cover]))
-    if not needed.any():
-        return empty
-    pair, cover = pair[needed], cover[needed]
+    # a cover sphere farther than its reach holds no vertex: it is at least its clearance less
+    # its radius away; past a near one's reach, every feature is farther than ``near`` from it
+    # (just above near: never a touch)
+    pair, cover, centres, reach = _sphere_floor(
+        best, pair, cover, centres, clearance, model.cover_radius, near, np.nextafter(near, np.inf)
+    )
+    if not len(pair):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3))
     rows, vertex, face_normal = _feature_hits(
         flat,
         slot[pair],
-        centres[needed],
-        reach[needed],
+        centres,
+        reach,
         model.cover_piece[cover],
         pair,
         best,
@@ -323,7 +401,7 @@ def _feature_hits(
                                 + pose[2, axis] * feature_normals[feature, 2]
                             )
                         target = targets[row]
-                        limit = min(near, max(keep, best[target] + PRUNE_SLACK_M))
+                        limit = _prune_limit(best[target], near, keep)
                         gap, face = _piece_gap(planes[piece], edges[piece], sides[piece], local, facing, limit, tie)
                         if gap > limit:  # the covers bound the farther ones
                             continue
