@@ -257,9 +257,9 @@ def test_measures_and_collision_tests_in_blocks_change_no_trial(monkeypatch):
         blocks.append(len(args[5]))  # the pairs of this block
         return measure_close(*args)
 
-    def tested(mesh, model, flat, rows, links, unsure, *rest):
+    def tested(mesh, model, flat, slot, rows, unsure, *rest):
         hands.append(len(np.unique(rows[unsure])))  # the hands of this block
-        return points_inside(mesh, model, flat, rows, links, unsure, *rest)
+        return points_inside(mesh, model, flat, slot, rows, unsure, *rest)
 
     def vertex_tested(features, model, flat, slot, pair, *rest, floor, keep):
         if floor == -np.inf:  # the collision test's (a measure's has floor 0)
@@ -386,12 +386,16 @@ def test_the_measures_compiled_gathers_give_numpys_spheres_points_and_bounds_bit
     """The cover spheres of some (pose, link) pairs, the far ones' bounds and the other ones'
     link points, gathered by the measure's kernels, are the spheres of each link's range with
     the centres :func:`transform` gives, the bounds ``clearance - reach`` where that passes
-    ``near`` and the ranges' points as :func:`transform` moves them: the same floats, so the
-    trials cannot change with them."""
+    ``near`` and the ranges' points as :func:`transform` moves them; the links' own bounds are
+    their centres' clearance less their radius: the same floats as numpy's, so the trials
+    cannot change with them."""
     from scipy.spatial.transform import Rotation
 
     from pipeline.hands.kinematics import transform
-    from pipeline.trial.proximity import _cover_spheres, _near_points, _sphere_floor
+    import trimesh
+
+    from pipeline.geometry.mesh_query import ObjectMesh
+    from pipeline.trial.proximity import _link_bounds, _link_ranges, _near_points, _sphere_floor
 
     model = hand_model(HANDS[name], spacing=0.003)
     rng = np.random.default_rng(1)
@@ -401,7 +405,7 @@ def test_the_measures_compiled_gathers_give_numpys_spheres_points_and_bounds_bit
     poses[..., :3, 3] = rng.uniform(-0.1, 0.1, (3, count, 3))
     flat, slot = poses.reshape(-1, 4, 4), np.arange(3 * count)
     close = np.flatnonzero(model.link_radius[slot % count] > 0)[::2]
-    pair, cover, centres = _cover_spheres(flat, slot, close, count, model.link_cover_start, model.cover_centre)
+    pair, cover, centres = _link_ranges(flat, slot, close, count, model.link_cover_start, model.cover_centre)
     link = slot[close] % count
     ranges = [np.arange(model.link_cover_start[k], model.link_cover_start[k + 1]) for k in link]
     assert np.array_equal(cover, np.concatenate(ranges))
@@ -429,6 +433,16 @@ def test_the_measures_compiled_gathers_give_numpys_spheres_points_and_bounds_bit
     assert np.array_equal(point, np.concatenate(ranges))
     assert np.array_equal(point_pair, np.repeat(pair[~far], [len(r) for r in ranges]))
     assert np.array_equal(world, transform(flat, slot[point_pair], model.points[point]))
+    # the links' own bounds, on a 10 cm box's distance grid
+    box = trimesh.creation.box(extents=(0.1, 0.1, 0.1))
+    mesh = ObjectMesh(box.vertices, box.faces)
+    links = slot % count
+    bound = mesh.clearance(transform(flat, slot, model.link_centre[links])) - model.link_radius[links]
+    has = model.link_radius[links] > 0
+    wide = float(np.median(bound[has]))  # some pairs within it, some beyond
+    distance, close = _link_bounds(flat, slot, links, model.link_centre, model.link_radius, wide, *mesh.clearance_grid)
+    assert np.array_equal(close, np.flatnonzero(has & (bound <= wide))) and 0 < len(close) < has.sum()
+    assert np.array_equal(distance, np.where(has & (bound > wide), np.maximum(bound, 0.0), np.inf))
 
 
 @pytest.mark.parametrize("name", sorted(HANDS))

@@ -225,8 +225,9 @@ def _grid_bounds(points, grid, origin, voxel, slack):
 
 
 @njit(cache=True)
-def _clearance(points, grid, origin, voxel, slack, box):
-    """(n,) lower bounds on the unsigned distance of (n, 3) points (see :meth:`ObjectMesh.clearance`)."""
+def grid_clearance(points, grid, origin, voxel, slack, box):
+    """(n,) lower bounds on the unsigned distance of (n, 3) points (see :meth:`ObjectMesh.clearance`;
+    compiled code calls it with :attr:`ObjectMesh.clearance_grid`)."""
     low, high = _grid_bounds(points, grid, origin, voxel, slack)
     out = np.empty(len(points))
     for point in range(len(points)):
@@ -402,8 +403,14 @@ class ObjectMesh:
         points = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
         return _grid_bounds(points, self.grid, self.origin, self.voxel, tol.grid_slack * self.voxel)
 
+    @property
+    def clearance_grid(self):
+        """What :func:`grid_clearance` takes after the points: the grid, its origin, voxel, slack
+        and the mesh's bounding box."""
+        return self.grid, self.origin, self.voxel, tol.grid_slack * self.voxel, self.box
+
     def clearance(self, points):
         """(n,) lower bound (m) on the unsigned distance of (n, 3) points to the mesh: the grid's,
         or beyond the grid the distance to the mesh's bounding box."""
         points = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
-        return _clearance(points, self.grid, self.origin, self.voxel, tol.grid_slack * self.voxel, self.box)
+        return grid_clearance(points, *self.clearance_grid)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..arrays import expand_ranges
+from ..geometry.mesh_query import grid_clearance
 from ..hands.kinematics import carry, transform
 from ..tol import tol
 
@@ -66,16 +66,9 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
     """
     count = len(model.links)
     features = mesh.features if features is None else features
-    flat = poses.reshape(-1, 4, 4)
+    flat = np.ascontiguousarray(poses, np.float64).reshape(-1, 4, 4)
     slot = rows * count + links
-    distance = np.full(len(rows), np.inf)
-    radius = model.link_radius[links]
-    centre = transform(flat, slot, model.link_centre[links])
-    bound = mesh.clearance(centre) - radius
-    has = radius > 0
-    close = np.flatnonzero(has & (bound <= near))
-    distance[has] = np.maximum(bound[has], 0.0)
-    distance[close] = np.inf
+    distance, close = _link_bounds(flat, slot, links, model.link_centre, model.link_radius, near, *mesh.clearance_grid)
     touches = ([], [], [])
     if len(close) * len(model.cover_radius) <= BLOCK_COVERS:  # the usual few pairs: one run, no sums
         runs = [close] if len(close) else []
@@ -163,10 +156,33 @@ def _measure_close(mesh, model, features, flat, slot, close, near, tolerance, di
 def _covers(mesh, model, flat, slot, close):
     """The cover spheres of the pairs ``close``: their pair (k,), cover (k,), world centres (k, 3)
     and clearance (k,) m (a lower bound on their centres' distance to the object)."""
-    pair, cover, centres = _cover_spheres(
-        flat, slot, close, len(model.links), model.link_cover_start, model.cover_centre
-    )
+    pair, cover, centres = _link_ranges(flat, slot, close, len(model.links), model.link_cover_start, model.cover_centre)
     return pair, cover, centres, mesh.clearance(centres)
+
+
+@njit(cache=True)
+def _link_bounds(poses, slots, links, link_centre, link_radius, near, grid, origin, voxel, slack, box):
+    """(m,) each pair's distance bound (its link's bounding sphere's clearance less its radius;
+    inf for a link without geometry) and the pairs (k,) whose bound is within ``near``, inf too
+    (their exact measure follows). Pair ``i`` is link ``links[i]`` at ``poses[slots[i]]``;
+    ``grid`` to ``box``: :attr:`pipeline.geometry.mesh_query.ObjectMesh.clearance_grid`."""
+    centres = np.empty((len(slots), 3))
+    for pair in range(len(slots)):
+        carry(poses[slots[pair]], link_centre[links[pair]], centres[pair])
+    clearance = grid_clearance(centres, grid, origin, voxel, slack, box)
+    distance = np.full(len(slots), np.inf)
+    close = np.empty(len(slots), np.int64)
+    found = 0
+    for pair in range(len(slots)):
+        radius = link_radius[links[pair]]
+        if radius > 0:
+            bound = clearance[pair] - radius
+            if bound <= near:
+                close[found] = pair
+                found += 1
+            else:
+                distance[pair] = max(bound, 0.0)
+    return distance, close[:found]
 
 
 # The gathers and bounds between the exact queries, compiled: a closing pass measures a few
@@ -176,23 +192,25 @@ def _covers(mesh, model, flat, slot, close):
 
 
 @njit(cache=True)
-def _cover_spheres(poses, slots, close, link_count, link_cover_start, cover_centre):
-    """The cover spheres of the pairs ``close`` (k,), pair ``p`` being link ``slots[p] % link_count``
-    at the pose ``poses[slots[p]]``: their pair (c,), cover (c,) and world centres (c, 3)."""
+def _link_ranges(poses, slots, pairs, link_count, link_start, local):
+    """The link-frame points ``local`` of each pair's link, pair ``p`` of ``pairs`` (k,) being
+    link ``slots[p] % link_count`` at the pose ``poses[slots[p]]``, its points
+    ``local[link_start[link]:link_start[link + 1]]`` (the cover spheres' centres, or the link
+    points): their pair (c,), index in ``local`` (c,) and world positions (c, 3)."""
     total = 0
-    for position in range(len(close)):
-        link = slots[close[position]] % link_count
-        total += link_cover_start[link + 1] - link_cover_start[link]
-    pair, cover, centres = np.empty(total, np.int64), np.empty(total, np.int64), np.empty((total, 3))
+    for position in range(len(pairs)):
+        link = slots[pairs[position]] % link_count
+        total += link_start[link + 1] - link_start[link]
+    pair, index, world = np.empty(total, np.int64), np.empty(total, np.int64), np.empty((total, 3))
     row = 0
-    for position in range(len(close)):
-        slot = slots[close[position]]
+    for position in range(len(pairs)):
+        slot = slots[pairs[position]]
         link = slot % link_count
-        for sphere in range(link_cover_start[link], link_cover_start[link + 1]):
-            pair[row], cover[row] = close[position], sphere
-            carry(poses[slot], cover_centre[sphere], centres[row])
+        for item in range(link_start[link], link_start[link + 1]):
+            pair[row], index[row] = pairs[position], item
+            carry(poses[slot], local[item], world[row])
             row += 1
-    return pair, cover, centres
+    return pair, index, world
 
 
 @njit(cache=True)
@@ -509,13 +527,12 @@ def _minimum_at(out, index, values):
             out[index[position]] = values[position]
 
 
-def _points_inside(mesh, model, flat, rows, links, unsure, starts, along, hit, deepest):
-    """The link points of the pairs ``unsure`` inside the mesh, for :func:`collides`: marks their
-    hands (``rows``) in ``hit`` and lowers each one's ``deepest`` (in place). A hand's answer
-    depends on its own pairs alone, all of them in ``unsure`` or none."""
-    owner, point = expand_ranges(starts[links[unsure]], np.diff(starts)[links[unsure]])
-    pair = unsure[owner]
-    world = transform(flat, pair, model.points[point])
+def _points_inside(mesh, model, flat, slot, rows, unsure, starts, along, hit, deepest):
+    """The link points (``starts``: each link's first in ``model.points``) of the pairs ``unsure``
+    inside the mesh, for :func:`collides`: marks their hands (``rows``) in ``hit`` and lowers each
+    one's ``deepest`` (in place). A hand's answer depends on its own pairs alone, all of them in
+    ``unsure`` or none."""
+    pair, _, world = _link_ranges(flat, slot, unsure, len(model.links), starts, model.points)
     low, high = mesh.bounds(world)
     inside = high < 0
     _minimum_at(deepest, rows[pair[inside]], high[inside])
@@ -563,7 +580,7 @@ def collides(mesh, model, poses, *, overlap=None, along=None):
     # hand being retreated is close to the surface)
     starts = _starts(model.point_link, count)
     for run in _runs(unsure, np.diff(starts)[links[unsure]], rows[unsure], BLOCK_POINTS):
-        _points_inside(mesh, model, flat, rows, links, run, starts, along, hit, deepest)
+        _points_inside(mesh, model, flat, slot, rows, run, starts, along, hit, deepest)
     unsure = unsure[~hit[rows[unsure]]]  # the vertex test only where no link point is inside
     deepest_feature = np.full(len(slot), np.inf)
     covers = np.diff(model.link_cover_start)
