@@ -129,3 +129,37 @@ def test_friction_noise_alone_grades_the_nominal_closed_hand_at_each_copys_mu():
     assert (mus == 0).any()  # a copy without friction: two pads alone never hold the cube
     assert fraction[0] == np.mean([quality.force_closure for quality in graded]) < 1.0
     assert epsilon[0] == pytest.approx(np.mean([quality.epsilon for quality in graded]), abs=1e-12)
+
+
+def test_a_tables_mu_column_grades_each_trial_at_its_own_friction_whatever_the_workers():
+    """The robust check's copies carry their friction coefficient as a ``mu`` column through
+    ``run_trials``: the jaw squeezing the cube across two faces holds it by friction alone, so
+    the same candidate is no force closure at mu 0 and force closure at 0.5, with the epsilon
+    of its own contacts at that mu, in one process or two."""
+    import pandas as pd
+
+    from pipeline.trial.protocol import run_trials
+    from pipeline.trial.quality import epsilon_quality
+
+    table = pd.DataFrame(
+        {
+            **{f"grasp_{axis}": [0.0, 0.0] for axis in "xyz"},
+            **{f"approach_{axis}": [APPROACH[0, k]] * 2 for k, axis in enumerate("xyz")},
+            **{f"orient_{axis}": [ORIENT[0, k]] * 2 for k, axis in enumerate("xyz")},
+            "preshape": [HANDS["parallel_jaw"].default_preshape] * 2,
+            "mu": [0.0, 0.5],
+        }
+    )
+    engine = GraspEngine(cube(), HANDS["parallel_jaw"])
+    for workers in (1, 2):
+        results = run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=workers)[0]
+        assert [result.outcome for result in results] == ["no_force_closure", "force_closure"]
+        for result, mu in zip(results, table.mu):
+            quality = epsilon_quality(
+                result.contact_points,
+                -result.contact_normals,
+                mu=mu,
+                torque_scale=engine.torque_scale,
+                center=engine.centre,
+            )
+            assert result.epsilon == quality.epsilon

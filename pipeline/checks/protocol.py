@@ -36,7 +36,7 @@ from ..arrays import vectors
 from ..errors import ArtefactError, DegenerateGeometryError
 from ..trial.engine import CLOSED
 from ..trial.protocol import PLANNERS
-from .robust import perturbed_candidates, robust_scores
+from .robust import perturbed_candidates, robust_summary
 
 #: the lift-and-shake checks (column prefixes) and the ``checks.engine`` that runs each
 PHYSICS_CHECKS = {"physics": "pybullet", "mujoco": "mujoco", "mujoco_open": "mujoco"}
@@ -94,7 +94,6 @@ def check_trials(surface, trial_table, parts, *, hands, seed, settings, workers=
         The ``checks`` params (:class:`pipeline.params.CheckParams`; defaults for those left out).
     """
     from ..params import CheckParams
-    from ..geometry.mass import torque_reference
     from ..trial.protocol import run_trials
     from .mujoco_check import MujocoSettings
     from .physics import PhysicsSettings, object_mass
@@ -143,23 +142,13 @@ def check_trials(surface, trial_table, parts, *, hands, seed, settings, workers=
                 for name, value in zip(("grasp", "approach", "orient"), (grasp, approach, orient))
                 for k, axis in enumerate("xyz")
             }
-            tables.append(
-                (number, pd.DataFrame({**columns, "preshape": np.repeat(table.preshape.to_numpy(), robust_samples)}))
-            )
-            copies.append((rows, mus))
+            # each copy graded once, in its trial, at its own friction coefficient
+            preshape = np.repeat(table.preshape.to_numpy(), robust_samples)
+            tables.append((number, pd.DataFrame({**columns, "preshape": preshape, "mu": mus})))
+            copies.append(rows)
         results = run_trials(surface, hands, tables, settings, workers=workers, progress=step)
-        centre, torque_scale = torque_reference(surface.vertices, surface.faces)
-        for (rows, mus), result in zip(copies, results):
-            scores = robust_scores(
-                result,
-                mus,
-                robust_samples,
-                cone_edges=settings.cone_edges,
-                torque_scale=torque_scale,
-                torsional_friction=settings.torsional_friction_m,
-                centre=centre,
-            )
-            robust.update({row: (fc, eps) for row, fc, eps in zip(rows, *scores)})
+        for rows, result in zip(copies, results):
+            robust.update({row: (fc, eps) for row, fc, eps in zip(rows, *robust_summary(result, robust_samples))})
     frames = []
     for number, planner, rows, _ in picked:
         table = trials.iloc[rows]

@@ -16,8 +16,6 @@ run's seed), so a trial's copies do not depend on which other trials share its b
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..trial.quality import epsilon_quality
-
 
 def perturbed_candidates(grasp, approach, orient, seeds, *, samples, pose_sigma_m, angle_sigma_rad, mu, mu_sigma):
     """``samples`` noisy copies of each of n candidates.
@@ -98,49 +96,16 @@ def robust_force_closure(
         mu_sigma=mu_sigma,
     )
     results = engine.run(
-        moved_grasp, moved_approach, moved_orient, list(np.repeat(np.asarray(preshapes, object), samples))
+        moved_grasp, moved_approach, moved_orient, list(np.repeat(np.asarray(preshapes, object), samples)), mus
     )
-    return robust_scores(
-        results,
-        mus,
-        samples,
-        cone_edges=settings.cone_edges,
-        torque_scale=engine.torque_scale,
-        torsional_friction=settings.torsional_friction_m,
-        centre=engine.centre,
-    )
+    return robust_summary(results, samples)
 
 
-def robust_scores(results, mus, samples, *, cone_edges, torque_scale, torsional_friction, centre):
-    """Grade the noisy copies' trials, each at its own friction coefficient.
-
-    Parameters
-    ----------
-    results : list of n * samples TrialResult
-        The copies' trials, candidate by candidate (as :func:`perturbed_candidates` orders them).
-    mus : (n * samples,) float
-    samples : int
-    cone_edges, torque_scale, torsional_friction, centre
-        As :func:`pipeline.trial.quality.epsilon_quality` takes them (the trials' own).
-
-    Returns
-    -------
-    robust_fc : (n,) float in [0, 1]
-    robust_epsilon : (n,) float
-    """
-    epsilon = np.zeros(len(results))
-    closed = np.zeros(len(results), bool)
-    for copy, (result, mu) in enumerate(zip(results, mus)):
-        if len(result.contact_points) < 2 or result.outcome == "step_cap":
-            continue
-        quality = epsilon_quality(
-            result.contact_points,
-            -result.contact_normals,
-            mu=mu,
-            edges=cone_edges,
-            torque_scale=torque_scale,
-            torsional_friction=torsional_friction,
-            center=centre,
-        )
-        epsilon[copy], closed[copy] = quality.epsilon, quality.force_closure
+def robust_summary(results, samples):
+    """``robust_fc`` and ``robust_epsilon`` (n,) of n candidates from their copies' trials: list
+    of n * samples TrialResult, candidate by candidate (as :func:`perturbed_candidates` orders
+    them), each graded at its own friction coefficient (:meth:`GraspEngine.run`'s ``mu``). A
+    copy counts as force closure by its outcome; its epsilon is 0 without (the engine's)."""
+    closed = np.array([result.outcome == "force_closure" for result in results], bool)
+    epsilon = np.array([result.epsilon for result in results], np.float64)
     return closed.reshape(-1, samples).mean(axis=1), epsilon.reshape(-1, samples).mean(axis=1)

@@ -70,9 +70,10 @@ class InPlaceEngine(GraspEngine):
     """The trial engine on hands placed at given poses (a grasp dataset's), closed there: no
     approach. See :meth:`close_in_place`."""
 
-    def close_in_place(self, base, joints, *, back_out=False):
+    def close_in_place(self, base, joints, *, back_out=False, mu=None):
         """Trials of hands at ``base`` (n, 4, 4) T_object_base (metres, rigid), opened at
-        ``joints`` (n, J) (``hand_model(hand).joints`` order), closed where they are.
+        ``joints`` (n, J) (``hand_model(hand).joints`` order), closed where they are, graded at
+        the friction coefficients ``mu`` (n,) (default the settings').
 
         A placed hand that overlaps the object is ``collision``; with ``back_out`` it is first
         moved back along its approach axis, as a trial's retreat (``retract_step_m`` steps, at
@@ -99,7 +100,8 @@ class InPlaceEngine(GraspEngine):
         placed[:, :3, 3] -= retreat[rows, None] * direction[rows]
         closed, stops, steps = self._close(placed, q[rows])
         start = self._lap("closing", start)
-        grades = self._grade_closed(placed, closed, stops, steps, retreat[rows], np.zeros(len(rows)))
+        mu = None if mu is None else np.asarray(mu, np.float64)[rows]
+        grades = self._grade_closed(placed, closed, stops, steps, retreat[rows], np.zeros(len(rows)), mu)
         for number, result in zip(rows, grades):
             results[number] = result
         self._lap("contacts", start)
@@ -152,7 +154,7 @@ class Labeller:
     def label(self, rows, base, open_joints):
         """The labels table of grasps ``rows`` (n,) (their numbers in the file: the seeds) at
         ``base`` (n, 4, 4) T_object_base with ``open_joints`` (n, J)."""
-        from ..checks.robust import perturbed_candidates, robust_scores
+        from ..checks.robust import perturbed_candidates, robust_summary
         from ..hands.kinematics import base_poses
 
         results = self.engine.close_in_place(base, open_joints)
@@ -183,17 +185,9 @@ class Labeller:
                 mu_sigma=self.robust["mu_sigma"],
             )
             copies = self.engine.close_in_place(
-                base_poses(self.hand, *moved[:3]), np.repeat(open_joints, samples, axis=0), back_out=True
+                base_poses(self.hand, *moved[:3]), np.repeat(open_joints, samples, axis=0), back_out=True, mu=moved[3]
             )
-            frame["robust_fc"], frame["robust_epsilon"] = robust_scores(
-                copies,
-                moved[3],
-                samples,
-                cone_edges=settings.cone_edges,
-                torque_scale=self.engine.torque_scale,
-                torsional_friction=settings.torsional_friction_m,
-                centre=self.engine.centre,
-            )
+            frame["robust_fc"], frame["robust_epsilon"] = robust_summary(copies, samples)
         else:
             frame["robust_fc"] = frame["robust_epsilon"] = np.nan
         for check, engine_name in PHYSICS_CHECKS.items():

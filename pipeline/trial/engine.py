@@ -174,10 +174,12 @@ class GraspEngine:
         """One trial (see :meth:`run`)."""
         return self.run([grasp_point], [approach], [orient], [preshape])[0]
 
-    def run(self, grasp, approach, orient, preshapes):
+    def run(self, grasp, approach, orient, preshapes, mu=None):
         """Trials of the candidates (n, 3) ``grasp`` (P_g), ``approach`` (P_d), ``orient`` (P_o),
         metres and unit vectors in the object frame, with ``preshapes`` (n,) names (None: the
-        hand's default). Returns a list of n :class:`TrialResult`."""
+        hand's default), each graded at its friction coefficient ``mu`` (n,) (default the
+        settings' ``mu``; the robust check's noisy copies have their own). Returns a list of n
+        :class:`TrialResult`."""
         grasp, approach, orient = (np.asarray(value, np.float64).reshape(-1, 3) for value in (grasp, approach, orient))
         count = len(grasp)
         results = [None] * count
@@ -219,7 +221,9 @@ class GraspEngine:
         rows, q, base, final, retreat = (value[~missed] for value in (rows, q, base, final, retreat))
         q, stops, steps = self._close(base, q)
         start = self._lap("closing", start)
-        closed = self._grade_closed(base, q, stops, steps, final, retreat - final)
+        closed = self._grade_closed(
+            base, q, stops, steps, final, retreat - final, None if mu is None else np.asarray(mu, np.float64)[rows]
+        )
         for number, result in zip(rows, closed):
             results[number] = result
         self._lap("contacts", start)
@@ -254,10 +258,11 @@ class GraspEngine:
         unknown = np.full(len(base), np.nan)
         return self._grade_closed(base, q, stops, np.zeros(len(base), np.int64), unknown, unknown)
 
-    def _grade_closed(self, base, q, stops, steps, retract, approach):
+    def _grade_closed(self, base, q, stops, steps, retract, approach, mu=None):
         """The :class:`TrialResult` of each closed hand: base poses (n, 4, 4), joints (n, J),
         finger ``stops`` (n, F) indices into :data:`STOPS`, closing ``steps`` (n,), and the
-        ``retract`` and ``approach`` (n,) metres recorded with it."""
+        ``retract`` and ``approach`` (n,) metres recorded with it; graded at the friction
+        coefficients ``mu`` (n,) (default the settings')."""
         model = self.model
         poses = link_poses(model, base, q)
         # the closed hands' touching pairs, measured all at once; exact up to the tolerance is
@@ -293,6 +298,7 @@ class GraspEngine:
                 steps[position],
                 float(retract[position]),
                 float(approach[position]),
+                self.settings.mu if mu is None else float(mu[position]),
             )
             for position in range(len(base))
         ]
@@ -451,11 +457,11 @@ class GraspEngine:
             walk = np.where(walk > 0, model.parent[np.maximum(walk, 0)], walk)
         return velocity
 
-    def _score(self, distance, pair, points, normals, base, quaternion, q, stops, steps, retract, approach):
+    def _score(self, distance, pair, points, normals, base, quaternion, q, stops, steps, retract, approach, mu):
         """The :class:`TrialResult` of one closed hand from its measure: ``distance`` (G,) of each
         link with geometry, and the touching ``pair`` (t,) (index among those links), object
         ``points`` (t, 3) and ``normals`` (t, 3); ``base`` (4, 4) its base pose, ``quaternion``
-        (4,) the same rotation."""
+        (4,) the same rotation; ``mu`` the friction coefficient it is graded at."""
         model, settings = self.model, self.settings
         pose = dict(
             retract_m=retract,
@@ -475,10 +481,10 @@ class GraspEngine:
             (links[pair[start]], points[start:end], normals[start:end])
             for start, end in zip(bounds, list(bounds[1:]) + [len(pair)])
         ]
-        return grade(regions, model, settings, centre=self.centre, torque_scale=self.torque_scale, **pose)
+        return grade(regions, model, settings, centre=self.centre, torque_scale=self.torque_scale, mu=mu, **pose)
 
 
-def grade(regions, model, settings, *, centre, torque_scale, **pose):
+def grade(regions, model, settings, *, centre, torque_scale, mu=None, **pose):
     """The :class:`TrialResult` of a closed hand from its touching pairs.
 
     Parameters
@@ -494,6 +500,8 @@ def grade(regions, model, settings, *, centre, torque_scale, **pose):
         The object's centre of mass (m), the torque reference.
     torque_scale : float
         Length (m) dividing torques.
+    mu : float, optional
+        The friction coefficient (default ``settings.mu``).
     **pose
         The other :class:`TrialResult` fields (where the hand closed, joints, stops).
     """
@@ -513,7 +521,7 @@ def grade(regions, model, settings, *, centre, torque_scale, **pose):
     quality = epsilon_quality(
         points,
         -normals,
-        mu=settings.mu,
+        mu=settings.mu if mu is None else mu,
         edges=settings.cone_edges,
         torque_scale=torque_scale,
         torsional_friction=settings.torsional_friction_m,
@@ -555,14 +563,15 @@ def start_pool_worker(shipped):
     start_worker(engines)
 
 
-def run_chunk(hand_number, grasp, approach, orient, preshapes):
-    """Trials of the candidates ``grasp``, ``approach``, ``orient`` (n, 3) and ``preshapes`` (n,)
-    (:meth:`GraspEngine.run`) with hand ``hand_number``: their results, and when they started and
-    ended (``time.perf_counter`` seconds, one clock for every process of the machine on Linux)."""
+def run_chunk(hand_number, grasp, approach, orient, preshapes, mu=None):
+    """Trials of the candidates ``grasp``, ``approach``, ``orient`` (n, 3), ``preshapes`` and
+    ``mu`` (n,) (:meth:`GraspEngine.run`) with hand ``hand_number``: their results, and when they
+    started and ended (``time.perf_counter`` seconds, one clock for every process of the machine
+    on Linux)."""
     start = time.perf_counter()
     if not len(grasp):
         return [], start, start
-    results = _WORKER["engines"][hand_number].run(grasp, approach, orient, preshapes)
+    results = _WORKER["engines"][hand_number].run(grasp, approach, orient, preshapes, mu)
     return results, start, time.perf_counter()
 
 

@@ -151,7 +151,9 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
     surface : SurfaceSamples
     hands : list of Hand
     tables : list of (int, pandas.DataFrame)
-        Each table with the number of its hand in ``hands``.
+        Each table with the number of its hand in ``hands``; a ``mu`` column, if any, is each
+        trial's friction coefficient for its grading (the robust check's noisy copies), else
+        the settings' ``mu``.
     settings : SimulateParams or None
         How the trials run (:class:`pipeline.trial.engine.GraspEngine`'s ``settings``).
     workers : int
@@ -201,9 +203,16 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
 
     def chunk_of(number):
         hand, trials = parts[number]
-        return hand, *(values[trials] for values in targets), [preshapes[trial] for trial in trials]
+        return hand, *(values[trials] for values in targets), [preshapes[trial] for trial in trials], mus[trials]
 
     settings = trial_settings(settings)
+    mus = np.concatenate(
+        [np.zeros(0)]
+        + [
+            table["mu"].to_numpy(np.float64) if "mu" in table.columns else np.full(len(table), settings.mu)
+            for _, table in tables
+        ]
+    )
     used = sorted({number for (number, _), length in zip(tables, lengths) if length})
     feeders, failed = [], []
     helpers = min(workers, len(parts)) - 1
