@@ -160,6 +160,12 @@ def _covers(mesh, model, flat, slot, close):
     return pair, cover, centres, mesh.clearance(centres)
 
 
+# The gathers and bounds between the exact queries, compiled: a closing pass measures a few
+# hundred pairs, where each numpy call's own cost (microseconds) outweighs its arithmetic. Each
+# float is the one numpy computed (single operations, in the same order; points moved by
+# :func:`pipeline.hands.kinematics.carry`, as :func:`transform` moves them).
+
+
 @njit(cache=True)
 def _link_bounds(poses, slots, links, link_centre, link_radius, near, grid, origin, voxel, slack, box):
     """(m,) each pair's distance bound (its link's bounding sphere's clearance less its radius;
@@ -185,10 +191,23 @@ def _link_bounds(poses, slots, links, link_centre, link_radius, near, grid, orig
     return distance, close[:found]
 
 
-# The gathers and bounds between the exact queries, compiled: a closing pass measures a few
-# hundred pairs, where each numpy call's own cost (microseconds) outweighs its arithmetic. Each
-# float is the one numpy computed (single operations, in the same order; points moved by
-# :func:`pipeline.hands.kinematics.carry`, as :func:`transform` moves them).
+@njit(cache=True)
+def _gather_ranges(poses, pose_of, owner, key, start, local):
+    """The link-frame points ``local[start[key[i]]:start[key[i] + 1]]`` of each item ``i`` (k,),
+    moved by ``poses[pose_of[i]]``: the owner (c,) (``owner[i]``), index in ``local`` (c,) and
+    world position (c, 3) of each."""
+    total = 0
+    for item in range(len(key)):
+        total += start[key[item] + 1] - start[key[item]]
+    point_owner, index, world = np.empty(total, np.int64), np.empty(total, np.int64), np.empty((total, 3))
+    row = 0
+    for item in range(len(key)):
+        pose = poses[pose_of[item]]
+        for point in range(start[key[item]], start[key[item] + 1]):
+            point_owner[row], index[row] = owner[item], point
+            carry(pose, local[point], world[row])
+            row += 1
+    return point_owner, index, world
 
 
 @njit(cache=True)
@@ -197,20 +216,8 @@ def _link_ranges(poses, slots, pairs, link_count, link_start, local):
     link ``slots[p] % link_count`` at the pose ``poses[slots[p]]``, its points
     ``local[link_start[link]:link_start[link + 1]]`` (the cover spheres' centres, or the link
     points): their pair (c,), index in ``local`` (c,) and world positions (c, 3)."""
-    total = 0
-    for position in range(len(pairs)):
-        link = slots[pairs[position]] % link_count
-        total += link_start[link + 1] - link_start[link]
-    pair, index, world = np.empty(total, np.int64), np.empty(total, np.int64), np.empty((total, 3))
-    row = 0
-    for position in range(len(pairs)):
-        slot = slots[pairs[position]]
-        link = slot % link_count
-        for item in range(link_start[link], link_start[link + 1]):
-            pair[row], index[row] = pairs[position], item
-            carry(poses[slot], local[item], world[row])
-            row += 1
-    return pair, index, world
+    slot = slots[pairs]
+    return _gather_ranges(poses, slot, pairs, slot % link_count, link_start, local)
 
 
 @njit(cache=True)
@@ -237,27 +244,14 @@ def _near_points(distance, pair, cover, clearance, cover_reach, near, poses, slo
     ``near`` of the object by their reach: their pair (m,), index in ``points`` (m,) and world
     positions (m, 3). The farther spheres lower ``distance[pair]`` (in place) to their clearance
     less their reach, a bound on all their points."""
-    total = 0
     far = np.zeros(len(pair), np.bool_)
     for row in range(len(pair)):
         gap = clearance[row] - cover_reach[cover[row]]
         far[row] = gap > near
-        if far[row]:
-            if gap < distance[pair[row]]:
-                distance[pair[row]] = gap
-        else:
-            total += cover_point_start[cover[row] + 1] - cover_point_start[cover[row]]
-    point_pair, point, world = np.empty(total, np.int64), np.empty(total, np.int64), np.empty((total, 3))
-    found = 0
-    for row in range(len(pair)):
-        if far[row]:
-            continue
-        pose = poses[slots[pair[row]]]
-        for index in range(cover_point_start[cover[row]], cover_point_start[cover[row] + 1]):
-            point_pair[found], point[found] = pair[row], index
-            carry(pose, points[index], world[found])
-            found += 1
-    return point_pair, point, world
+        if far[row] and gap < distance[pair[row]]:
+            distance[pair[row]] = gap
+    within = pair[~far]
+    return _gather_ranges(poses, slots[within], within, cover[~far], cover_point_start, points)
 
 
 @njit(cache=True)
