@@ -357,6 +357,82 @@ def test_link_distances_match_a_dense_brute_force_and_never_undershoot():
     assert checked >= 5
 
 
+def hands_around_a_sphere(model, radius, count, rng):
+    """(count, L, 4, 4) link poses of hands at random orientations and joints, their bases
+    within 8 cm outside a sphere of ``radius`` (m) at the origin."""
+    base = np.tile(np.eye(4), (count, 1, 1))
+    base[:, :3, :3] = np.linalg.qr(rng.normal(size=(count, 3, 3)))[0]
+    base[:, :3, :3] *= np.sign(np.linalg.det(base[:, :3, :3]))[:, None, None]
+    direction = rng.normal(size=(count, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    base[:, :3, 3] = direction * (radius + rng.uniform(0.0, 0.08, (count, 1)))
+    return link_poses(model, base, rng.uniform(model.lower, model.upper, (count, len(model.joints))))
+
+
+@pytest.mark.parametrize("name", sorted(HANDS))
+def test_a_capped_measure_spares_link_point_queries_and_changes_nothing_within_near(name, monkeypatch):
+    """A measure whose caller caps distances at ``near`` (``capped``: the closing, the grading)
+    skips the exact queries of link points that their cover sphere's centre shows to be
+    farther. Hands around a 30 cm sphere (its distance grid's 1.5 cm voxels pass many points
+    within a centimetre or two on to the exact queries): fewer link points queried, the same
+    distances within ``near`` and the same touches bit for bit, and beyond ``near`` still a
+    lower bound above it (no more than the exact distance, where a measure with ``near`` 3 cm
+    has it)."""
+    from pipeline.trial import proximity
+
+    ball = surface("primitive:sphere", radius=0.3)
+    engine = GraspEngine(ball, HANDS[name])
+    model, mesh, near, tolerance = engine.model, engine.mesh, engine.near, engine.settings.contact_tolerance_m
+    poses = hands_around_a_sphere(model, 0.3, 40, np.random.default_rng(2))
+    links = np.flatnonzero(model.link_radius > 0)
+    rows, pair_links = np.repeat(np.arange(len(poses)), len(links)), np.tile(links, len(poses))
+    queried = []
+    closest = type(mesh).closest
+    monkeypatch.setattr(
+        type(mesh), "closest", lambda self, points: queried.append(len(points)) or closest(self, points)
+    )
+    answers = {}
+    for capped in (False, True):
+        queried.clear()
+        answers[capped] = proximity.measure(
+            mesh, model, poses, rows, pair_links, near=near, tolerance=tolerance, capped=capped
+        )
+        answers[capped, "queried"] = sum(queried)
+    truth = proximity.measure(mesh, model, poses, rows, pair_links, near=0.03)  # exact up to 3 cm
+    (exact, touches), (spared, spared_touches) = answers[False], answers[True]
+    within, beyond = exact <= near, np.isfinite(exact) & (exact > near)
+    known = beyond & (truth <= 0.03)
+    assert within.any() and known.any() and len(touches.pair)
+    assert np.array_equal(spared[within], exact[within])
+    assert (spared[beyond] > near).all() and (spared[known] <= truth[known]).all()
+    for got, want in zip(dataclasses.astuple(spared_touches), dataclasses.astuple(touches)):
+        assert np.array_equal(got, want)
+    assert answers[True, "queried"] < answers[False, "queried"]
+
+
+@pytest.mark.parametrize("name", sorted(HANDS))
+def test_the_capped_closing_and_grading_measures_change_no_trial(name, monkeypatch):
+    """The closing and the grading measure with ``capped``; the same trials around a 30 cm
+    sphere with every measure uncapped are the same bit for bit (outcomes, quality, joints,
+    closing steps and every contact)."""
+    import pickle
+
+    from pipeline.trial import engine as engine_module
+
+    ball = surface("primitive:sphere", radius=0.3)
+    engine = GraspEngine(ball, HANDS[name])
+    rng = np.random.default_rng(4)
+    direction = rng.normal(size=(16, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    orient = np.cross(direction, rng.normal(size=(16, 3)))
+    capped = engine.run(0.3 * direction, -direction, orient, [None] * 16)
+    measure = engine_module.measure
+    monkeypatch.setattr(engine_module, "measure", lambda *args, **kwargs: measure(*args, **{**kwargs, "capped": False}))
+    uncapped = engine.run(0.3 * direction, -direction, orient, [None] * 16)
+    assert {result.outcome for result in capped} & {"force_closure", "no_force_closure"}
+    assert [pickle.dumps(result) for result in capped] == [pickle.dumps(result) for result in uncapped]
+
+
 @pytest.mark.parametrize("name", sorted(HANDS))
 @pytest.mark.parametrize("refine", [1, 3])
 def test_every_link_point_lies_in_the_cover_sphere_that_culls_it(name, refine):
@@ -421,9 +497,10 @@ def test_the_measures_compiled_gathers_give_numpys_spheres_points_and_bounds_bit
     floor = np.where(within, np.nextafter(near, np.inf), clearance - model.cover_radius[cover])
     assert np.array_equal(best[close], [floor[pair == number].min() for number in close])
     distance = np.full(len(slot), np.inf)
-    point_pair, point, world = _near_points(
+    point_row, point, world = _near_points(
         distance, pair, cover, clearance, model.cover_reach, near, flat, slot, model.cover_point_start, model.points
     )
+    point_pair = pair[point_row]
     gap = clearance - model.cover_reach[cover]
     far = gap > near
     assert far.any() and not far.all()
@@ -431,7 +508,7 @@ def test_the_measures_compiled_gathers_give_numpys_spheres_points_and_bounds_bit
     assert np.array_equal(distance[close], lowered)
     ranges = [np.arange(model.cover_point_start[k], model.cover_point_start[k + 1]) for k in cover[~far]]
     assert np.array_equal(point, np.concatenate(ranges))
-    assert np.array_equal(point_pair, np.repeat(pair[~far], [len(r) for r in ranges]))
+    assert np.array_equal(point_row, np.repeat(np.flatnonzero(~far), [len(r) for r in ranges]))
     assert np.array_equal(world, transform(flat, slot[point_pair], model.points[point]))
     # the links' own bounds, on a 10 cm box's distance grid
     box = trimesh.creation.box(extents=(0.1, 0.1, 0.1))

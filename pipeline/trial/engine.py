@@ -278,6 +278,7 @@ class GraspEngine:
             near=self.settings.contact_tolerance_m,
             tolerance=self.settings.contact_tolerance_m,
             features=self.mesh.contact_features,
+            capped=True,
         )
         distance = distance.reshape(len(base), len(links))
         order = np.argsort(touches.pair, kind="stable")
@@ -391,7 +392,7 @@ class GraspEngine:
             wanted = (active[rows].astype(float) @ model.moves) > 0
             pairs, links = np.nonzero(wanted & (model.link_radius > 0))
             distance = np.full(wanted.shape, np.inf)
-            distance[pairs, links] = measure(self.mesh, model, poses, pairs, links, near=self.near)
+            distance[pairs, links] = measure(self.mesh, model, poses, pairs, links, near=self.near, capped=True)
             # a link within the tolerance stops its joints where closing presses it into the
             # object; one touching on its back, which closing moves away, goes on (OpenRAVE and
             # GraspIt stop a joint on the collision its motion would make). Its touching pairs
@@ -408,6 +409,7 @@ class GraspEngine:
                 near=tolerance,
                 tolerance=tolerance,
                 features=self.mesh.contact_features,
+                capped=True,
             )
             owner, link = pairs[touches.pair], links[touches.pair]
             velocity = self._velocity(poses, owner, link, touches.points, active[rows][owner])

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..geometry.mesh_query import grid_clearance
+from ..geometry.mesh_query import _grid_bounds, grid_clearance
 from ..hands.kinematics import carry, transform
 from ..tol import tol
 
@@ -42,7 +42,7 @@ def _starts(owner, count):
     return np.searchsorted(owner, np.arange(count + 1))
 
 
-def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=None):
+def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=None, capped=False):
     """Distance (m) of link ``links[i]`` of pose ``rows[i]`` to the object.
 
     Parameters
@@ -59,6 +59,11 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
         Also return the :class:`Touches` within it (``tolerance <= near``).
     features : Features, optional
         The mesh features measured against the links (default ``mesh.features``).
+    capped : bool
+        The caller uses no distance above ``near`` but as ``near`` itself (the closing caps its
+        steps there; the touches need only those within ``tolerance``): a pair farther than
+        ``near`` may then get any lower bound above it, which spares the exact queries of the
+        link points that their cover sphere's centre shows to be that far.
 
     Returns
     -------
@@ -76,7 +81,7 @@ def measure(mesh, model, poses, rows, links, *, near, tolerance=None, features=N
         covers = np.diff(model.link_cover_start)
         runs = _runs(close, covers[links[close]], close, BLOCK_COVERS)
     for run in runs:
-        _measure_close(mesh, model, features, flat, slot, run, near, tolerance, distance, touches)
+        _measure_close(mesh, model, features, flat, slot, run, near, tolerance, distance, touches, capped)
     if tolerance is None:
         return distance
     joined = [
@@ -106,7 +111,7 @@ def _runs(items, sizes, owner, block):
     return np.split(items, first[1:][np.diff(run) > 0])
 
 
-def _measure_close(mesh, model, features, flat, slot, close, near, tolerance, distance, touches):
+def _measure_close(mesh, model, features, flat, slot, close, near, tolerance, distance, touches, capped=False):
     """The exact part of :func:`measure` for the pairs ``close``, each nearer than ``near`` by its
     bound: lowers ``distance`` (one entry per pair, in place) and appends their touches within
     ``tolerance`` (if given) to the lists ``touches``. A pair's answer depends on its own link
@@ -120,11 +125,14 @@ def _measure_close(mesh, model, features, flat, slot, close, near, tolerance, di
     )
     # link points: those of cover spheres within reach; the others are farther than
     # ``near``, bounded below by their sphere
-    point_pair, point, world = _near_points(
+    point_row, point, world = _near_points(
         distance, pair, cover, clearance, model.cover_reach, near, flat, slot, model.cover_point_start, model.points
     )
+    point_pair = pair[point_row]
     lower = mesh.clearance(world)
     exact = _worth_exact(lower, distance, point_pair, near, keep)
+    if capped:
+        _spare_far_points(mesh, centres, point_row, world, near, exact, lower)
     found = mesh.closest(world[exact])
     lower[exact] = found.distances
     _minimum_at(distance, point_pair, lower)
@@ -151,6 +159,65 @@ def _measure_close(mesh, model, features, flat, slot, close, near, tolerance, di
         touches[0].append(feature_pair)
         touches[1].append(features.points[vertex])
         touches[2].append(features.clamp(-normal, vertex))
+
+
+def _spare_far_points(mesh, centres, point_row, world, near, exact, lower):
+    """Drop from ``exact`` (in place) the link points that their cover sphere's centre
+    (``centres[point_row]``) shows to be farther than ``near``: a point is no nearer than the
+    centre's exact distance less its own distance to the centre. Such a point's ``lower`` bound
+    (in place) becomes that one, above ``near``: a pair's distance within ``near`` is unchanged,
+    one above it stays above it. A centre is queried only where the grid allows it to spare
+    :data:`MIN_SPARED` of its points or more."""
+    grid, origin, voxel, slack, _ = mesh.clearance_grid
+    offset, spheres = _hopeful_centres(exact, point_row, world, centres, near, grid, origin, voxel, slack, MIN_SPARED)
+    if len(spheres):
+        centre_distance = np.full(len(centres), -np.inf)
+        centre_distance[spheres] = mesh.distance(centres[spheres])
+        _spare(exact, lower, point_row, offset, centre_distance, near)
+
+
+#: the fewest link points a cover sphere's centre query must be able to spare (one query for
+#: one point gains nothing)
+MIN_SPARED = 2
+
+
+@njit(cache=True)
+def _hopeful_centres(exact, point_row, world, centres, near, grid, origin, voxel, slack, min_spared):
+    """:func:`_spare_far_points`' first step: each ``exact`` point's distance to its sphere's
+    centre plus :data:`PRUNE_SLACK_M` (m,) (inf for the others), and the spheres (k,) where the
+    grid's upper bound on the centre's distance leaves ``min_spared`` points or more that the
+    centre's exact distance could show to be farther than ``near``."""
+    used = np.zeros(len(centres), np.bool_)
+    for point in range(len(world)):
+        used[point_row[point]] |= exact[point]
+    rows = np.flatnonzero(used)
+    low, high = _grid_bounds(centres[rows], grid, origin, voxel, slack)
+    upper = np.empty(len(centres))  # the centres' largest distance by the grid
+    upper[rows] = np.maximum(high, -low)
+    offset = np.full(len(world), np.inf)
+    hopeful = np.zeros(len(centres), np.int64)
+    for point in range(len(world)):
+        if exact[point]:
+            row = point_row[point]
+            squared = 0.0
+            for axis in range(3):
+                squared += (world[point, axis] - centres[row, axis]) ** 2
+            offset[point] = np.sqrt(squared) + PRUNE_SLACK_M
+            if upper[row] - offset[point] > near:
+                hopeful[row] += 1
+    return offset, np.flatnonzero(hopeful >= min_spared)
+
+
+@njit(cache=True)
+def _spare(exact, lower, point_row, offset, centre_distance, near):
+    """:func:`_spare_far_points`' last step, in place: the ``exact`` points whose sphere's
+    ``centre_distance`` less their ``offset`` passes ``near`` are spared, with that bound."""
+    for point in range(len(exact)):
+        if exact[point]:
+            bound = centre_distance[point_row[point]] - offset[point]
+            if bound > near:
+                exact[point] = False
+                lower[point] = bound
 
 
 def _covers(mesh, model, flat, slot, close):
@@ -241,17 +308,17 @@ def _sphere_floor(best, pair, cover, centres, clearance, cover_radius, near, abo
 @njit(cache=True)
 def _near_points(distance, pair, cover, clearance, cover_reach, near, poses, slots, cover_point_start, points):
     """The link points of the cover spheres (``pair``, ``cover``, ``clearance`` (c,) each) within
-    ``near`` of the object by their reach: their pair (m,), index in ``points`` (m,) and world
-    positions (m, 3). The farther spheres lower ``distance[pair]`` (in place) to their clearance
-    less their reach, a bound on all their points."""
+    ``near`` of the object by their reach: their sphere's row (m,), index in ``points`` (m,)
+    and world positions (m, 3). The farther spheres lower ``distance[pair]`` (in place) to their
+    clearance less their reach, a bound on all their points."""
     far = np.zeros(len(pair), np.bool_)
     for row in range(len(pair)):
         gap = clearance[row] - cover_reach[cover[row]]
         far[row] = gap > near
         if far[row] and gap < distance[pair[row]]:
             distance[pair[row]] = gap
-    within = pair[~far]
-    return _gather_ranges(poses, slots[within], within, cover[~far], cover_point_start, points)
+    within = np.flatnonzero(~far)
+    return _gather_ranges(poses, slots[pair[within]], within, cover[within], cover_point_start, points)
 
 
 @njit(cache=True)
