@@ -207,9 +207,10 @@ def _cells(points, size):
 
 
 @njit(cache=True)
-def _grid_bounds(points, grid, origin, voxel, slack):
+def grid_bounds(points, grid, origin, voxel, slack):
     """(n,) lower and upper bounds on the signed distance of (n, 3) points from the ``grid``'s
-    nearest node (see :meth:`ObjectMesh.bounds`)."""
+    nearest node (see :meth:`ObjectMesh.bounds`; compiled code calls it with the first four of
+    :attr:`ObjectMesh.clearance_grid`)."""
     low, high = np.empty(len(points)), np.empty(len(points))
     last = np.array(grid.shape) - 1
     cell = np.empty(3, np.int64)
@@ -228,7 +229,7 @@ def _grid_bounds(points, grid, origin, voxel, slack):
 def grid_clearance(points, grid, origin, voxel, slack, box):
     """(n,) lower bounds on the unsigned distance of (n, 3) points (see :meth:`ObjectMesh.clearance`;
     compiled code calls it with :attr:`ObjectMesh.clearance_grid`)."""
-    low, high = _grid_bounds(points, grid, origin, voxel, slack)
+    low, high = grid_bounds(points, grid, origin, voxel, slack)
     out = np.empty(len(points))
     for point in range(len(points)):
         squared = 0.0
@@ -401,7 +402,7 @@ class ObjectMesh:
         """(n,) lower and (n,) upper bounds (m) on the signed distance of (n, 3) points, from the
         grid's nearest node (valid anywhere: far outside the grid they are loose, not wrong)."""
         points = np.ascontiguousarray(points, np.float64).reshape(-1, 3)
-        return _grid_bounds(points, self.grid, self.origin, self.voxel, tol.grid_slack * self.voxel)
+        return grid_bounds(points, self.grid, self.origin, self.voxel, tol.grid_slack * self.voxel)
 
     @property
     def clearance_grid(self):

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..geometry.mesh_query import _grid_bounds, grid_clearance
+from ..geometry.mesh_query import grid_bounds, grid_clearance
 from ..hands.kinematics import carry, transform
 from ..tol import tol
 
@@ -191,7 +191,7 @@ def _hopeful_centres(exact, point_row, world, centres, near, grid, origin, voxel
     for point in range(len(world)):
         used[point_row[point]] |= exact[point]
     rows = np.flatnonzero(used)
-    low, high = _grid_bounds(centres[rows], grid, origin, voxel, slack)
+    low, high = grid_bounds(centres[rows], grid, origin, voxel, slack)
     upper = np.empty(len(centres))  # the centres' largest distance by the grid
     upper[rows] = np.maximum(high, -low)
     offset = np.full(len(world), np.inf)
