@@ -125,10 +125,10 @@ def test_reference_jaw_squeezing_a_cube_gets_the_pads_face_contacts():
 def test_reference_point_velocities_match_the_engines_kinematics(name):
     """Random closing states of every hand: the velocity of points on each moving link, from
     pybullet's joint frames and axes (the reference) and from the engine's own kinematics
-    (:meth:`pipeline.trial.engine.GraspEngine._velocity`), agree to 1e-5 of the speed
+    (:func:`pipeline.hands.kinematics.point_velocities`), agree to 1e-5 of the speed
     (pybullet's frames are float32: the numerical derivative the reference used before was off
     by 2e-4, which pressed a jaw pad sliding past a vertex beside its side face)."""
-    from pipeline.hands.kinematics import link_poses
+    from pipeline.hands.kinematics import link_poses, point_velocities
     from pipeline.trial.engine import GraspEngine
 
     box = surface("primitive:box", extents=(0.05, 0.03, 0.04))
@@ -145,7 +145,7 @@ def test_reference_point_velocities_match_the_engines_kinematics(name):
         for link in np.flatnonzero(model.moves[active].any(axis=0) & (model.link_radius > 0)):
             points = poses[0, link, :3, 3] + rng.normal(0.0, 0.02, (5, 3))
             theirs = reference._velocity(link, points, active)
-            ours = engine._velocity(poses, np.zeros(5, int), np.full(5, link), points, np.tile(active, (5, 1)))
+            ours = point_velocities(model, poses, np.zeros(5, int), np.full(5, link), points, np.tile(active, (5, 1)))
             speed = np.linalg.norm(ours, axis=1, keepdims=True)
             assert (speed > 0).all()
             np.testing.assert_allclose(theirs / speed, ours / speed, atol=1e-5)

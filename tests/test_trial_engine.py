@@ -433,6 +433,75 @@ def test_the_capped_closing_and_grading_measures_change_no_trial(name, monkeypat
     assert [pickle.dumps(result) for result in capped] == [pickle.dumps(result) for result in uncapped]
 
 
+def test_a_closing_step_moves_each_jaw_by_its_pads_room_and_stops_a_pressed_one():
+    """The jaw's pads close by the room their distance leaves (capped at ``near``, less half the
+    tolerance, never below half of it), a pad pressed into the object stops its slide, and a
+    slide that reaches its limit stops there: hand-computed on three hands."""
+    from pipeline.trial.engine import _closing_step
+
+    model = hand_model(HANDS["parallel_jaw"], spacing=0.003)
+    near, tolerance = 0.004, 0.002
+    distance = np.array([[np.inf, 0.003, 0.010], [np.inf, 0.001, 0.003], [np.inf, 0.0005, 0.02]])
+    q = np.array([[0.01, 0.039], [0.02, 0.02], [0.0, 0.0]])
+    active = np.ones((3, 2), bool)
+    speed = np.abs(model.closing)[:, None] * model.lever
+    pressed_hand, pressed_pad = np.array([1]), np.array([1])  # hand 1's left pad
+    stopped, new, still = _closing_step(
+        distance, pressed_hand, pressed_pad, active, q, model.moves, model.finger, speed,
+        model.closing, model.lower, model.upper, near, tolerance,
+    )  # fmt: skip
+    assert stopped.tolist() == [[False, False], [True, False], [False, False]]
+    room = lambda gap: max(min(gap, near) - tolerance / 2, tolerance / 2)  # noqa: E731
+    assert new.tolist() == [
+        [0.01 + room(0.003), 0.04],  # the right slide would pass its 4 cm limit
+        [0.02, 0.02 + room(0.003)],
+        [0.0 + room(0.0005), 0.0 + room(0.02)],
+    ]
+    assert still.tolist() == [[True, False], [False, True], [True, True]]
+
+
+@pytest.mark.parametrize("name", sorted(HANDS))
+def test_the_compiled_closing_step_gives_numpys_joints_bit_for_bit(name):
+    """Random closing passes of every hand (links near and far, some pressed, joints near their
+    limits): the compiled step's stops, joints and still-closing joints are those of the numpy
+    expressions it replaced, bit for bit (the sign of a zero included)."""
+    from pipeline.trial.engine import _closing_step
+
+    model = hand_model(HANDS[name], spacing=0.003)
+    rng = np.random.default_rng(2)
+    hands, near, tolerance = 300, 0.004, 0.002
+    direction = np.sign(model.closing)
+    fingers = model.finger[:, None] == np.arange(model.fingers)[None, :]
+    speed = np.abs(model.closing)[:, None] * model.lever
+    q = model.lower + (model.upper - model.lower) * rng.choice([0.0, 0.5, 0.99, 1.0], (hands, len(model.joints)))
+    q[rng.random(q.shape) < 0.1] = -0.0
+    active = (rng.random(q.shape) < 0.8) & (direction != 0)
+    distance = np.where(
+        rng.random((hands, len(model.links))) < 0.2, np.inf, rng.uniform(0, 0.01, (hands, len(model.links)))
+    )
+    pressed = np.argwhere(rng.random((hands, len(model.links))) < 0.1)
+    stopped, new, still = _closing_step(
+        distance, pressed[:, 0], pressed[:, 1], active, q, model.moves, model.finger, speed,
+        model.closing, model.lower, model.upper, near, tolerance,
+    )  # fmt: skip
+    pressing = np.zeros(distance.shape, bool)
+    pressing[pressed[:, 0], pressed[:, 1]] = True
+    want_stopped = active & ((pressing.astype(float) @ model.moves.T) > 0)
+    moving = active & ~want_stopped
+    motion = np.einsum("rj,jf,jl->rfl", moving.astype(float), fingers.astype(float), speed)
+    sharing = np.maximum((motion > 0).sum(axis=1), 1)
+    room = np.maximum(np.minimum(distance, near) - tolerance / 2, tolerance / 2) / sharing
+    with np.errstate(divide="ignore", invalid="ignore"):
+        advance = np.where(motion > 0, room[:, None, :] / motion, np.inf).min(axis=2)
+    advance = np.where(np.isfinite(advance), advance, 0.0)
+    change = np.where(moving, model.closing[None, :] * (advance @ fingers.T), 0.0)
+    want_new = np.clip(q + change, model.lower, model.upper)
+    reached = moving & np.where(direction > 0, want_new >= model.upper, want_new <= model.lower)
+    assert want_stopped.any() and reached.any() and (moving & ~reached).any()
+    assert np.array_equal(stopped, want_stopped) and np.array_equal(still, moving & ~reached)
+    assert np.array_equal(new.view(np.uint64), want_new.view(np.uint64))
+
+
 @pytest.mark.parametrize("name", sorted(HANDS))
 @pytest.mark.parametrize("refine", [1, 3])
 def test_every_link_point_lies_in_the_cover_sphere_that_culls_it(name, refine):

@@ -186,6 +186,56 @@ def _transform(poses, owner, local):
     return world
 
 
+def point_velocities(model, poses, rows, links, points, active):
+    """(t, 3) velocity (m per unit of closing) of the world ``points`` (t, 3) on the ``links``
+    (t,) of the poses ``rows`` (t,) ((n, L, 4, 4) ``poses``) under the joints ``active`` (t, J)
+    closing: each joint between the link and the base adds its coupling ratio times its axis
+    (prismatic) or its axis crossed with the point's arm from the joint (revolute)."""
+    return _point_velocities(
+        np.ascontiguousarray(poses, np.float64),
+        np.ascontiguousarray(rows, np.int64),
+        np.ascontiguousarray(links, np.int64),
+        np.ascontiguousarray(points, np.float64).reshape(-1, 3),
+        np.ascontiguousarray(active, np.bool_),
+        model.parent,
+        model.driver,
+        model.closing,
+        model.multiplier,
+        model.prismatic,
+        model.axis,
+    )
+
+
+@njit(cache=True)
+def _point_velocities(poses, rows, links, points, active, parent, driver, closing, multiplier, prismatic, axis):
+    """See :func:`point_velocities`; each float the one of the numpy expressions it replaced
+    (a closing pass's few touching points paid 0.09 ms of numpy calls)."""
+    velocity = np.zeros((len(links), 3))
+    turn, arm = np.empty(3), np.empty(3)
+    for touch in range(len(links)):
+        link = links[touch]
+        while link > 0:
+            joint = driver[link]
+            if joint >= 0:
+                rate = closing[joint] * multiplier[link] * (1.0 if active[touch, joint] else 0.0)
+                frame = poses[rows[touch], link]
+                for row in range(3):
+                    turn[row] = (
+                        frame[row, 0] * axis[link, 0] + frame[row, 1] * axis[link, 1] + frame[row, 2] * axis[link, 2]
+                    )
+                if not prismatic[link]:
+                    for row in range(3):
+                        arm[row] = points[touch, row] - frame[row, 3]
+                    x = turn[1] * arm[2] - turn[2] * arm[1]
+                    y = turn[2] * arm[0] - turn[0] * arm[2]
+                    z = turn[0] * arm[1] - turn[1] * arm[0]
+                    turn[0], turn[1], turn[2] = x, y, z
+                for row in range(3):
+                    velocity[touch, row] += rate * turn[row]
+            link = parent[link]
+    return velocity
+
+
 @njit(cache=True)
 def carry(pose, local, world):
     """Write into ``world`` (3,) the link-frame point ``local`` (3,) carried by ``pose`` (4, 4):

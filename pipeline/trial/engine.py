@@ -45,13 +45,14 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 from scipy.spatial.transform import Rotation
 
 from ..allocator import keep_freed_memory
 from ..errors import BadInputError
 from ..geometry.mass import torque_reference
 from ..geometry.mesh_query import ObjectMesh
-from ..hands.kinematics import base_poses, hand_model, link_poses
+from ..hands.kinematics import base_poses, hand_model, link_poses, point_velocities
 from ..tol import tol
 from .contacts import region_corners
 from .proximity import collides, measure
@@ -412,52 +413,29 @@ class GraspEngine:
                 capped=True,
             )
             owner, link = pairs[touches.pair], links[touches.pair]
-            velocity = self._velocity(poses, owner, link, touches.points, active[rows][owner])
-            pressing = np.zeros(wanted.shape, bool)
+            velocity = point_velocities(model, poses, owner, link, touches.points, active[rows][owner])
             into = np.einsum("ij,ij->i", velocity, touches.normals) < -tol.sliding * np.linalg.norm(velocity, axis=1)
-            pressing[owner[into], link[into]] = True
-            stopped = active[rows] & ((pressing.astype(float) @ model.moves.T) > 0)
+            stopped, q[rows], still = _closing_step(
+                distance,
+                owner[into],
+                link[into],
+                active[rows],
+                q[rows],
+                model.moves,
+                model.finger,
+                speed,
+                model.closing,
+                model.lower,
+                model.upper,
+                self.near,
+                tolerance,
+            )
             by_contact[rows] |= stopped
-            active[rows] &= ~stopped
-            moving = active[rows]
-            # per finger and link, metres moved per unit of the finger's closing parameter
-            motion = np.einsum("rj,jf,jl->rfl", moving.astype(float), fingers.astype(float), speed)
-            sharing = np.maximum((motion > 0).sum(axis=1), 1)  # fingers moving each link
-            # distances capped at ``near``: beyond it the engine knows only a bound, and a step
-            # sized by it would make where a finger stops hang on the bound's slack
-            room = np.maximum(np.minimum(distance, self.near) - tolerance / 2, tolerance / 2) / sharing
-            with np.errstate(divide="ignore", invalid="ignore"):
-                advance = np.where(motion > 0, room[:, None, :] / motion, np.inf).min(axis=2)  # (r, F)
-            advance = np.where(np.isfinite(advance), advance, 0.0)
-            change = np.where(moving, model.closing[None, :] * (advance @ fingers.T), 0.0)
-            new = np.clip(q[rows] + change, model.lower, model.upper)
-            q[rows] = new
-            reached = moving & np.where(direction > 0, new >= model.upper, new <= model.lower)
-            active[rows] &= ~reached
+            active[rows] = still
         per_finger = lambda mask: (mask.astype(float) @ fingers) > 0  # noqa: E731
         stops = np.where(per_finger(active), 2, np.where(per_finger(by_contact), 0, 1))
         stops = np.where(fingers.any(axis=0)[None, :], stops, 3)
         return q, stops, steps
-
-    def _velocity(self, poses, rows, links, points, active):
-        """(t, 3) velocity (m per unit of closing) of world ``points`` (t, 3) on ``links`` (t,) of
-        the poses ``rows`` (t,) under the joints ``active`` (t, J) closing."""
-        model = self.model
-        velocity = np.zeros_like(points)
-        walk = links.copy()
-        while (walk > 0).any():
-            live = np.flatnonzero(walk > 0)
-            link = walk[live]
-            joint = model.driver[link]
-            driven = joint >= 0
-            live, link, joint = live[driven], link[driven], joint[driven]
-            rate = model.closing[joint] * model.multiplier[link] * active[live, joint]
-            frame = poses[rows[live], link]
-            axis = np.einsum("nij,nj->ni", frame[:, :3, :3], model.axis[link])
-            spin = np.cross(axis, points[live] - frame[:, :3, 3])
-            velocity[live] += rate[:, None] * np.where(model.prismatic[link][:, None], axis, spin)
-            walk = np.where(walk > 0, model.parent[np.maximum(walk, 0)], walk)
-        return velocity
 
     def _score(self, distance, pair, points, normals, base, quaternion, q, stops, steps, retract, approach, mu):
         """The :class:`TrialResult` of one closed hand from its measure: ``distance`` (G,) of each
@@ -484,6 +462,66 @@ class GraspEngine:
             for start, end in zip(bounds, list(bounds[1:]) + [len(pair)])
         ]
         return grade(regions, model, settings, centre=self.centre, torque_scale=self.torque_scale, mu=mu, **pose)
+
+
+@njit(cache=True)
+def _closing_step(distance, owner, link, active, q, moves, finger, speed, closing, lower, upper, near, tolerance):
+    """One pass of :meth:`GraspEngine._close` after its measures, for r hands: ``distance`` (r, L)
+    of their links (inf where not measured), the (t,) ``owner`` hand and ``link`` of each touching
+    point that closing presses into the object, the ``active`` joints (r, J) and ``q`` (r, J).
+    Returns the joints those points stop (r, J), the new q (r, J) and the joints still closing
+    after it (r, J): each finger advanced as far as its links' room allows, clipped at the
+    limits. ``moves`` (J, L), ``finger`` (J,) (-1: none), ``speed`` (J, L) m per unit closing,
+    ``closing``, ``lower``, ``upper`` (J,): the hand model's. Every float is the one of the numpy
+    expressions it replaced (their few dozen calls a pass cost more than their arithmetic)."""
+    hands, joints, links, fingers = q.shape[0], q.shape[1], distance.shape[1], finger.max() + 1
+    pressing = np.zeros((hands, links), np.bool_)
+    for touch in range(len(owner)):
+        pressing[owner[touch], link[touch]] = True
+    stopped = np.zeros((hands, joints), np.bool_)
+    moving = active.copy()
+    new = np.empty_like(q)
+    for hand in range(hands):
+        for joint in range(joints):
+            if active[hand, joint]:
+                for part in range(links):
+                    if pressing[hand, part] and moves[joint, part]:
+                        stopped[hand, joint] = True
+                        moving[hand, joint] = False
+                        break
+        # per finger and link, metres moved per unit of the finger's closing parameter
+        motion = np.zeros((fingers, links))
+        for joint in range(joints):
+            if moving[hand, joint] and finger[joint] >= 0:
+                for part in range(links):
+                    motion[finger[joint], part] += speed[joint, part]
+        advance = np.full(fingers, np.inf)
+        for part in range(links):
+            sharing = 0  # fingers moving the link
+            for number in range(fingers):
+                sharing += motion[number, part] > 0
+            # distances capped at ``near``: beyond it the engine knows only a bound, and a step
+            # sized by it would make where a finger stops hang on the bound's slack
+            room = max(min(distance[hand, part], near) - tolerance / 2, tolerance / 2) / max(sharing, 1)
+            for number in range(fingers):
+                if motion[number, part] > 0:
+                    advance[number] = min(advance[number], room / motion[number, part])
+        for joint in range(joints):
+            change = 0.0
+            if moving[hand, joint]:
+                share = 0.0
+                if finger[joint] >= 0 and np.isfinite(advance[finger[joint]]):
+                    share = advance[finger[joint]]
+                change = closing[joint] * share
+            # every joint clipped, as numpy's clip with array bounds does (a bound where not past it)
+            value = q[hand, joint] + change
+            value = value if value > lower[joint] else lower[joint]
+            new[hand, joint] = value if value < upper[joint] else upper[joint]
+            if moving[hand, joint] and (
+                new[hand, joint] >= upper[joint] if closing[joint] > 0 else new[hand, joint] <= lower[joint]
+            ):
+                moving[hand, joint] = False
+    return stopped, new, moving
 
 
 def grade(regions, model, settings, *, centre, torque_scale, mu=None, **pose):
