@@ -428,11 +428,41 @@ def test_a_worker_killed_mid_run_is_one_clear_error_not_a_broken_pool(monkeypatc
     assert killed and isinstance(raised.value, PipelineError)  # a stage prints it as one line
 
 
+def _die(*_):
+    import os
+    import signal
+
+    os.kill(os.getpid(), signal.SIGKILL)  # as the system does when memory runs out
+
+
+def test_a_worker_killed_while_it_computes_the_grid_is_the_same_clear_error(monkeypatch):
+    from pipeline.errors import WorkerError
+    from pipeline.trial import protocol
+
+    monkeypatch.setattr(protocol, "grid_distances", _die)  # the first worker's task
+    table = baseline_candidates(cube(), HANDS["parallel_jaw"], 8, np.random.default_rng(2))
+    with pytest.raises(
+        WorkerError, match=re.escape(cube().source) + ": a trial worker process ended abruptly.*8 trials"
+    ):
+        run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=2)
+
+
+def test_the_grid_a_worker_computes_is_the_one_the_object_mesh_computes_bit_for_bit():
+    from pipeline.geometry.mesh_query import ObjectMesh, grid_distances
+
+    duck = surface("pybullet:duck.obj")
+    own = ObjectMesh(duck.vertices, duck.faces)
+    given = ObjectMesh(duck.vertices, duck.faces, grid=lambda: grid_distances(duck.vertices, duck.faces, 40))
+    assert own.grid.shape == given.grid.shape and (own.grid < 0).any() and (own.grid > 0).any()
+    assert np.array_equal(own.grid.view(np.uint64), given.grid.view(np.uint64))
+    assert np.array_equal(own.origin, given.origin) and own.voxel == given.voxel
+
+
 def test_the_workers_started_before_the_engines_are_built_do_not_outlive_a_failed_build(monkeypatch):
     from pipeline.errors import BadInputError
     from pipeline.trial import protocol
 
-    def broken_mesh(surface, settings):  # the workers are started by now, waiting for the engines
+    def broken_mesh(surface, settings, grid=None):  # the workers are started by now, waiting for the engines
         raise BadInputError(f"{surface.source}: broken")
 
     monkeypatch.setattr(protocol, "object_mesh", broken_mesh)

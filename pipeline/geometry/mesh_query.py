@@ -255,6 +255,39 @@ class Closest:
         return Closest(self.points[rows], self.triangles[rows], self.normals[rows], self.distances[rows])
 
 
+def grid_nodes(vertices, grid_cells):
+    """The signed distance grid of a mesh with (v, 3) ``vertices``: its origin (3,) and voxel (m),
+    ``grid_cells`` along the bounding box's longest side and two more beyond each side, its
+    shape (3,) and its nodes (n, 3) in C order."""
+    low, high = vertices.min(axis=0), vertices.max(axis=0)
+    voxel = float((high - low).max() / grid_cells)
+    origin = low - 2 * voxel
+    shape = np.ceil((high - low) / voxel).astype(int) + 5
+    axes = [origin[k] + voxel * np.arange(shape[k]) for k in range(3)]
+    return origin, voxel, shape, np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+
+
+def grid_distances(vertices, faces, grid_cells):
+    """(n,) the exact signed distances (m) of the :func:`grid_nodes` of the closed mesh
+    (``vertices`` (v, 3), ``faces`` (f, 3)), on every CPU this process may use: what
+    :class:`ObjectMesh` builds its grid from, for another process to compute."""
+    import open3d
+
+    vertices = np.asarray(vertices, np.float64)
+    nodes = grid_nodes(vertices, grid_cells)[-1]
+    scene = _scene(open3d, vertices, np.asarray(faces, np.int64))
+    query = open3d.core.Tensor(np.ascontiguousarray(nodes, np.float32))
+    threads = len(os.sched_getaffinity(0))
+    return scene.compute_signed_distance(query, nthreads=threads).numpy().astype(np.float64)
+
+
+def _scene(open3d, vertices, faces):
+    """open3d's ray casting scene of the mesh (float32 vertices, uint32 faces)."""
+    scene = open3d.t.geometry.RaycastingScene()
+    scene.add_triangles(open3d.core.Tensor(vertices.astype(np.float32)), open3d.core.Tensor(faces.astype(np.uint32)))
+    return scene
+
+
 class ObjectMesh:
     """A closed triangle mesh (metres, object frame) with exact queries and a distance grid.
 
@@ -270,9 +303,13 @@ class ObjectMesh:
     contact_edge_spacing : float, optional
         The same for ``contact_features``, which the closed hand's contacts are measured
         against (default ``edge_spacing``).
+    grid : callable, optional
+        Returns the grid nodes' signed distances as :func:`grid_distances` computes them
+        (computed here when None). Called last, so that another process can compute them while
+        this one builds the rest.
     """
 
-    def __init__(self, vertices, faces, *, grid_cells=40, edge_spacing=0.003, contact_edge_spacing=None):
+    def __init__(self, vertices, faces, *, grid_cells=40, edge_spacing=0.003, contact_edge_spacing=None, grid=None):
         import open3d
 
         self._o3d = open3d
@@ -292,21 +329,12 @@ class ObjectMesh:
         self.contact_features = (
             self.features if contact_edge_spacing in (None, edge_spacing) else self._features(contact_edge_spacing)
         )
-        low, high = self.vertices.min(axis=0), self.vertices.max(axis=0)
-        self.box = np.array([low, high])
-        self.voxel = float((high - low).max() / grid_cells)
-        self.origin = low - 2 * self.voxel
-        shape = np.ceil((high - low) / self.voxel).astype(int) + 5
-        axes = [self.origin[k] + self.voxel * np.arange(shape[k]) for k in range(3)]
-        nodes = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
-        self.grid = self.signed_distance(nodes).reshape(shape)
+        self.box = np.array([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+        self.origin, self.voxel, shape, nodes = grid_nodes(self.vertices, grid_cells)
+        self.grid = (self.signed_distance(nodes) if grid is None else grid()).reshape(shape)
 
     def _scene(self):
-        scene = self._o3d.t.geometry.RaycastingScene()
-        scene.add_triangles(
-            self._o3d.core.Tensor(self.vertices.astype(np.float32)), self._o3d.core.Tensor(self.faces.astype(np.uint32))
-        )
-        return scene
+        return _scene(self._o3d, self.vertices, self.faces)
 
     def __getstate__(self):
         # open3d's scene does not pickle; it is rebuilt from the mesh (milliseconds), while the

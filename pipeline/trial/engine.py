@@ -101,15 +101,16 @@ def trial_settings(settings=None, **overrides):
     return dataclasses.replace(SimulateParams() if settings is None else settings, **overrides)
 
 
-def object_mesh(surface, settings):
+def object_mesh(surface, settings, grid=None):
     """The :class:`ObjectMesh` of ``surface`` that trials with ``settings`` (SimulateParams) query:
-    its distance grid and the feature points at their spacings."""
+    its distance grid and the feature points at their spacings (``grid``: as ObjectMesh takes it)."""
     return ObjectMesh(
         surface.vertices,
         surface.faces,
         grid_cells=settings.grid_cells,
         edge_spacing=settings.link_point_spacing_m,
         contact_edge_spacing=settings.contact_point_spacing_m,
+        grid=grid,
     )
 
 
@@ -590,28 +591,37 @@ def start_worker(engines):
 
 
 def start_pool_worker(shipped):
-    """:func:`start_worker` in a worker process of a pool, with the engines pickled in the file
-    whose path its caller puts on the queue ``shipped`` once they are built (the process starts
-    meanwhile). The objects so far (the imported libraries', the engines') are moved out of the
-    garbage collector's reach: a full collection walked them all, about 0.12 s, between one chunk
-    and the next. Its malloc keeps freed memory (:func:`pipeline.allocator.keep_freed_memory`), as
-    the caller's does."""
-    with open(shipped.get(), "rb") as file:
-        engines = pickle.load(file)
+    """Set up a worker process of a pool: its first chunk (:func:`run_chunk`) runs with the
+    engines pickled in the file whose path its caller puts on the queue ``shipped`` once they
+    are built; until then the process can take other tasks (the object's distance grid:
+    :func:`pipeline.geometry.mesh_query.grid_distances`). The objects so far (the imported
+    libraries'), and the engines once loaded, are moved out of the garbage collector's reach: a
+    full collection walked them all, about 0.12 s, between one chunk and the next. Its malloc
+    keeps freed memory (:func:`pipeline.allocator.keep_freed_memory`), as the caller's does."""
     gc.freeze()
     keep_freed_memory()
-    start_worker(engines)
+    _WORKER.update(shipped=shipped)
+
+
+def _engines():
+    """This process's engines; a pool worker's loaded at its first chunk (:func:`start_pool_worker`)."""
+    if "engines" not in _WORKER:
+        with open(_WORKER["shipped"].get(), "rb") as file:
+            _WORKER["engines"] = pickle.load(file)
+        gc.freeze()
+    return _WORKER["engines"]
 
 
 def run_chunk(hand_number, grasp, approach, orient, preshapes, mu=None):
     """Trials of the candidates ``grasp``, ``approach``, ``orient`` (n, 3), ``preshapes`` and
     ``mu`` (n,) (:meth:`GraspEngine.run`) with hand ``hand_number``: their results, and when they
     started and ended (``time.perf_counter`` seconds, one clock for every process of the machine
-    on Linux)."""
+    on Linux; a worker's first chunk starts once it has its engines)."""
+    engines = _engines()
     start = time.perf_counter()
     if not len(grasp):
         return [], start, start
-    results = _WORKER["engines"][hand_number].run(grasp, approach, orient, preshapes, mu)
+    results = engines[hand_number].run(grasp, approach, orient, preshapes, mu)
     return results, start, time.perf_counter()
 
 

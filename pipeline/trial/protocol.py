@@ -44,6 +44,7 @@ from .. import pool, seeds
 from ..allocator import objects_frozen
 from ..arrays import vectors
 from ..errors import WorkerError
+from ..geometry.mesh_query import grid_distances
 from .engine import (
     OUTCOMES,
     GraspEngine,
@@ -159,14 +160,15 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
     workers : int
         Processes, this one included: it builds the engines (one object mesh for every hand),
         then runs chunks itself, while ``workers - 1`` worker processes (:mod:`pipeline.pool`),
-        started first, wait for a copy of them and take theirs, each the next chunk left.
+        started first, wait for a copy of them and take theirs, each the next chunk left; the
+        first worker computes the object's distance grid meanwhile, the engines' costly part.
         Results do not depend on it.
     progress : callable(int, int), optional
         Called with the number of trials just finished and the total.
     timeline : list, optional
         Where the call's time went, appended as (step, process, start, end) spans in
         ``time.perf_counter`` seconds (process 0 this one, 1 to ``workers - 1`` the workers):
-        ``start workers`` (the threads that fork them started), ``set-up`` (the engines built), ``ship``
+        ``start workers`` (the grid's task and the threads that fork them started), ``set-up`` (the engines built), ``ship``
         (their copy written for the workers), ``chunk`` (each chunk's trials, where they ran),
         ``results`` (a worker's chunk ended to its results here), ``call`` (the whole call).
 
@@ -254,13 +256,22 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
                 left.clear()
 
     try:
+        # the object's distance grid is most of an engine's set-up: built once, by the first
+        # worker (on every core) while this process builds the rest, or here without workers
+        grid = (
+            executor.submit(grid_distances, surface.vertices, surface.faces, settings.grid_cells)
+            if executor and used
+            else None
+        )
         for process in range(1, helpers + 1):
             feeders.append(threading.Thread(target=feed, args=(take(), process), daemon=True))
             feeders[-1].start()
         forked = time.perf_counter()
         spans.append(("start workers", 0, called, forked))
-        # the object's distance grid is most of an engine's set-up: built once, here
-        mesh = object_mesh(surface, settings) if used else None
+        try:
+            mesh = object_mesh(surface, settings, grid.result if grid else None) if used else None
+        except concurrent.futures.BrokenExecutor as error:
+            raise _worker_error(surface, total, workers) from error
         engines = {number: GraspEngine(surface, hands[number], settings, mesh=mesh) for number in used}
         built = time.perf_counter()
         spans.append(("set-up", 0, forked, built))
@@ -287,11 +298,7 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
             threading.Thread(target=_close_pool, args=(executor, shipped, copy), name="close trial pool").start()
     if failed:
         if isinstance(failed[0], concurrent.futures.BrokenExecutor):
-            raise WorkerError(
-                f"{surface.source}: a trial worker process ended abruptly (killed by a signal, or by the system for memory) "
-                f"with {total} trials to run on {workers} processes; rerun with fewer workers (params.yaml's "
-                f"simulate.workers, or --workers): each holds the object's mesh and a chunk of up to {CHUNK} trials"
-            ) from failed[0]
+            raise _worker_error(surface, total, workers) from failed[0]
         raise failed[0]
     results = [None] * total
     for (_, trials), found in zip(parts, done):
@@ -299,6 +306,15 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
             results[trial] = result
     spans.append(("call", 0, called, time.perf_counter()))
     return [results[first : first + length] for first, length in zip(np.cumsum(lengths) - lengths, lengths)]
+
+
+def _worker_error(surface, total, workers):
+    """The :class:`WorkerError` of a trial worker that ended abruptly."""
+    return WorkerError(
+        f"{surface.source}: a trial worker process ended abruptly (killed by a signal, or by the system for memory) "
+        f"with {total} trials to run on {workers} processes; rerun with fewer workers (params.yaml's "
+        f"simulate.workers, or --workers): each holds the object's mesh and a chunk of up to {CHUNK} trials"
+    )
 
 
 def _close_pool(executor, shipped, copy):
