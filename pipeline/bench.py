@@ -231,10 +231,14 @@ def candidate_targets(table):
 def _warm_engine(surface, candidates, hand, trials, settings):
     """``trials`` random rows of ``hand``'s MAT ``candidates`` (seeded: the first of
     :func:`drawn_first`), their targets (grasp, approach, orient, preshapes) and an engine that
-    has run two of them."""
+    has run two of them, its exact queries on one thread (the tables time it on one core)."""
     table = drawn_first(candidates, trials).iloc[:trials]
     targets = candidate_targets(table)
     engine = GraspEngine(surface, hand, settings)
+    # open3d's queries would otherwise take every CPU the process may use: before 2026-12-07,
+    # session 61, the "one core" engine rates did, and the chunks timed under one_core ran two
+    # query threads on its one CPU
+    engine.mesh.threads = 1
     # numba loads its compiled kernels on their first call (about 0.3 s a process, once): part
     # of the start-up (measured through the pool in the trial table), not of the trials
     engine.run(*(values[:2] for values in targets))
@@ -453,13 +457,14 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
         candidates = generate(symmetry, hand)
         table, targets, engine = _warm_engine(surface, candidates, hand, trials, settings)
         engine.seconds = dict.fromkeys(engine.seconds, 0.0)
-        start = time.perf_counter()
-        new = [
-            result
-            for first in range(0, len(table), CHUNK)
-            for result in engine.run(*(values[first : first + CHUNK] for values in targets))
-        ]
-        new_rate = len(table) / (time.perf_counter() - start)
+        with one_core():
+            start = time.perf_counter()
+            new = [
+                result
+                for first in range(0, len(table), CHUNK)
+                for result in engine.run(*(values[first : first + CHUNK] for values in targets))
+            ]
+            new_rate = len(table) / (time.perf_counter() - start)
         steps = dict(engine.seconds)
         rates, ratios, parts = {}, {}, {}
         # a batch of distinct candidates, as a simulate stage's: the engine's first, then the
