@@ -274,17 +274,60 @@ def one_core():
         hold(before)
 
 
-def interleaved_seconds(runs, rounds, clock=time.perf_counter):
+def interleaved_seconds(runs, rounds, clock=time.perf_counter, own=()):
     """Seconds of each of ``runs`` ({name: callable}), ``rounds`` times, one of each per round in
     turn, so that the machine's drift (a noisy neighbour, a slower phase) reaches every run alike
-    and their ratios can be taken round by round: {name: (rounds,) float array}."""
+    and their ratios can be taken round by round: {name: (rounds,) float array}. The runs named
+    in ``own`` return seconds of their own (a float or a (k,) array: :func:`at_once`'s), which
+    time them instead: their values are (rounds,) or (rounds, k)."""
     seconds = {name: [] for name in runs}
     for _ in range(rounds):
         for name, run in runs.items():
             start = clock()
-            run()
-            seconds[name].append(clock() - start)
+            found = run()
+            seconds[name].append(found if name in own else clock() - start)
     return {name: np.array(values) for name, values in seconds.items()}
+
+
+def at_once(calls, cpus):
+    """Runs ``calls`` (callables) at the same time, each in a process forked from this one (a
+    copy sharing its memory until written) and held to its CPU of ``cpus``; released together
+    once all are forked. Returns (len(calls),) seconds, each call's own: what the machine gives
+    the same work on several cores with no pool in between. Raises RuntimeError, with the
+    child's error, where a call fails."""
+    release, go = os.pipe()
+    children = []
+    for call, cpu in zip(calls, cpus, strict=True):
+        read, write = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # the child: only os._exit leaves it (no atexit, no parent's buffers)
+            status = 1
+            try:
+                os.close(read)
+                os.sched_setaffinity(0, {cpu})
+                os.read(release, 1)
+                start = time.perf_counter()
+                call()
+                os.write(write, f"{time.perf_counter() - start!r}".encode())
+                status = 0
+            except BaseException as error:  # noqa: BLE001 (reported to the parent)
+                os.write(write, f"error: {type(error).__name__}: {error}".encode())
+            finally:
+                os._exit(status)
+        os.close(write)
+        children.append((pid, read))
+    os.write(go, b"x" * len(children))
+    found = []
+    for pid, read in children:
+        with os.fdopen(read, "rb") as pipe:
+            found.append(pipe.read().decode())
+        os.waitpid(pid, 0)
+    for pipe in (release, go):
+        os.close(pipe)
+    failed = [message for message in found if not message or message.startswith("error")]
+    if failed:
+        raise RuntimeError(f"a call run at once failed: {failed[0] or 'it ended with no word'}")
+    return np.array([float(message) for message in found])
 
 
 def timeline_parts(timeline):
@@ -342,10 +385,26 @@ def _chunk_runs(engine, targets, workers):
     return {"whole": run(np.arange(count)), **parts}
 
 
-def chunks_seconds(engine, targets, rounds, workers):
+def chunks_seconds(engine, targets, rounds, workers, cpus=None):
     """Seconds of :func:`_chunk_runs`, each alone, in ``rounds`` interleaved rounds
-    (:func:`interleaved_seconds`): {"whole": (rounds,) float array, 0: the first chunk's, 1: ...}."""
-    return interleaved_seconds(_chunk_runs(engine, targets, workers), rounds)
+    (:func:`interleaved_seconds`): {"whole": (rounds,) float array, 0: the first chunk's, 1: ...}.
+    With ``cpus`` (one per chunk), in the same rounds, the chunks in forked copies of this
+    process (:func:`at_once`), ``"forked"`` one after another and ``"at once"`` together, each
+    on its CPU: (rounds, chunks) arrays."""
+    runs = _chunk_runs(engine, targets, workers)
+    if cpus is not None:
+        parts = [run for name, run in runs.items() if name != "whole"]
+        cpus = [cpus[number % len(cpus)] for number in range(len(parts))]
+        runs["forked"] = lambda: np.concatenate([at_once([part], [cpu]) for part, cpu in zip(parts, cpus)])
+        runs["at once"] = lambda: at_once(parts, cpus)
+    return interleaved_seconds(runs, rounds, own=("forked", "at once"))
+
+
+def together_factor(forked, together):
+    """How much longer the longest of a batch's chunks took run together than alone, from
+    :func:`chunks_seconds`' ``"forked"`` and ``"at once"`` (rounds, chunks) seconds: the median
+    of the rounds' ratios of their longest (1: the cores do not slow each other)."""
+    return float(np.median(together.max(axis=1) / forked.max(axis=1)))
 
 
 def own_time_parts(stats):
@@ -408,14 +467,17 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     (:func:`interleaved_seconds`): rates are medians, ratios the median of each round's, and where
     the one-core and all-core calls' time went (:func:`timeline_parts`, medians); and the first
     batch and the stage's tables in one chunk against the chunks run_trials deals them to, each
-    alone on one core (:func:`chunks_seconds`, :func:`chunked_ratio`), and where the first
-    batch's own time goes in each (:func:`chunks_own_time`). Returns the rows. (The engine it
+    alone on one core (:func:`chunks_seconds`, :func:`chunked_ratio`), the same chunks in forked
+    copies of this process alone and at once, a core each (:func:`at_once`,
+    :func:`together_factor`: what running together costs on the machine, no pool in between),
+    and where the first batch's own time goes in each (:func:`chunks_own_time`). Returns the rows. (The engine it
     replaced, one pybullet trial at a time, is gone; its rates beside this one's are in
     docs/benchmarks.md.)"""
     from . import pool
     from .trial.reference import ReferenceEngine
 
     cores = default_workers(0)
+    cpus = sorted(os.sched_getaffinity(0))
     if cores > 1:
         pool.start()  # as the simulate stage does before reading its inputs
     artefacts, faces = trial_bench_chain()
@@ -447,7 +509,9 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
         "process's), its results' trip back, and the rest of the call after them; the ratio had the workers cost "
         "nothing (these set-ups, one core's trials shared by the cores); then the first batch and the stage's tables "
         "alone on one core in one chunk and in the chunks run_trials deals them to (medians), and the ratio had the "
-        "workers cost nothing but those chunks' own time; last, the first batch's own time in one chunk and in those "
+        "workers cost nothing but those chunks' own time, and those chunks in forked copies of this process (no pool), "
+        "alone and at once on a core each, and the ratio had the workers cost nothing but the chunks' own time at once; "
+        "last, the first batch's own time in one chunk and in those "
         "chunks, profiled: in the compiled kernels, in open3d's queries, and in the Python and numpy calls around them"
     )
     rows = []
@@ -488,17 +552,16 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
         ]
         sizes = {batch: sum(len(table) for _, table in tables) for batch, tables in runs.items()}
         # the engine's sample and the stage's tables, each in one chunk and in the chunks
-        # run_trials deals it to, alone on one core: what splitting them costs before any worker does
+        # run_trials deals it to, alone on one core: what splitting them costs before any worker
+        # does; and those chunks in forked copies of this process, alone and together on a core
+        # each: what running at once costs on this machine now, pool or not
         samples = {
             TRIAL_BATCHES[0]: targets,
             STAGE_BATCH: candidate_targets(pd.concat([table for _, table in runs[STAGE_BATCH]], ignore_index=True)),
         }
         with one_core():
             split = {
-                batch: {
-                    name: float(np.median(values))
-                    for name, values in chunks_seconds(engine, these, repeats, cores).items()
-                }
+                batch: chunks_seconds(engine, these, repeats, cores, cpus if cores > 1 else None)
                 for batch, these in samples.items()
             }
             own_time = chunks_own_time(engine, samples[TRIAL_BATCHES[0]], cores)
@@ -575,8 +638,10 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
             )
         row["chunks"] = []
         for batch, found in split.items():
-            whole, pieces = found["whole"], [value for key, value in found.items() if key != "whole"]
-            ratio = chunked_ratio(parts[batch, "core"], parts[batch, "all"], whole, pieces)
+            whole = float(np.median(found["whole"]))
+            pieces = [float(np.median(found[key])) for key in found if key not in ("whole", "forked", "at once")]
+            one, every = parts[batch, "core"], parts[batch, "all"]
+            ratio = chunked_ratio(one, every, whole, pieces)
             row["chunks"].append(
                 dict(
                     batch=batch,
@@ -592,6 +657,23 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
                 f"{' + '.join(f'{value:.3f}' for value in pieces)} in run_trials' {len(pieces)} "
                 f"(+{sum(pieces) / whole - 1:.1%}, the longest {max(pieces) * len(pieces) / whole - 1:+.1%} over an even "
                 f"share); ratio with these chunks and the batch's set-ups {ratio:.2f}"
+            )
+            if "at once" not in found:
+                continue
+            forked, together = np.median(found["forked"], axis=0), np.median(found["at once"], axis=0)
+            factor = together_factor(found["forked"], found["at once"])
+            reachable = chunked_ratio(one, every, whole, [max(pieces) * factor])
+            row["chunks"][-1].update(
+                forked_s=[round(float(value), 4) for value in forked],
+                at_once_s=[round(float(value), 4) for value in together],
+                at_once_factor=round(factor, 3),
+                ratio_with_chunks_at_once=round(reachable, 2),
+            )
+            out(
+                f"      the same chunks in forked copies of this process, a core each, s: alone "
+                f"{' + '.join(f'{value:.3f}' for value in forked)}, at once {' + '.join(f'{value:.3f}' for value in together)} "
+                f"(the longest x{factor:.3f}: what running together costs here now); ratio with these chunks at once "
+                f"and the batch's set-ups {reachable:.2f}"
             )
         row["own_time"] = {
             name: {key: round(value, 4) for key, value in found.items()} for name, found in own_time.items()

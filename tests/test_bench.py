@@ -1,6 +1,7 @@
 """The stage bench's attribution of a profile to named parts (its timings are figures, not tests)."""
 
 import cProfile
+import os
 import pstats
 import time
 
@@ -180,6 +181,75 @@ def test_the_chunks_bench_runs_the_sample_whole_and_in_run_trials_own_chunks():
     # each round: the whole sample, then each chunk, with the preshapes of its own rows
     assert engine.runs == [(rows, [f"shape{row}" for row in rows]) for rows in [list(range(count)), *dealt]] * 3
     assert sorted(dealt[0] + dealt[1]) == list(range(count))
+
+
+def test_calls_run_at_once_each_in_a_forked_process_on_its_own_cpu(tmp_path):
+    from pipeline.bench import at_once
+
+    cpus = (sorted(os.sched_getaffinity(0)) * 2)[:2]
+
+    def call(number):
+        def run():  # marks its start, then waits for the other's: one run after the other would time out
+            assert os.sched_getaffinity(0) == {cpus[number]} and os.getpid() != parent
+            (tmp_path / f"started{number}").touch()
+            waited = time.monotonic()
+            while not (tmp_path / f"started{1 - number}").exists():
+                assert time.monotonic() - waited < 30, "the other call never started"
+                time.sleep(0.001)
+
+        return run
+
+    parent, before = os.getpid(), os.sched_getaffinity(0)
+    seconds = at_once([call(0), call(1)], cpus)
+    assert seconds.shape == (2,) and (seconds >= 0).all()
+    assert os.sched_getaffinity(0) == before  # the parent keeps its CPUs
+
+
+def test_a_call_that_fails_at_once_raises_its_error_in_the_caller():
+    from pipeline.bench import at_once
+
+    def broken():
+        raise ValueError("no trials")
+
+    cpu = min(os.sched_getaffinity(0))
+    with pytest.raises(RuntimeError, match="ValueError: no trials"):
+        at_once([lambda: None, broken], [cpu, cpu])
+
+
+def test_the_chunks_bench_runs_the_chunks_forked_alone_and_at_once(tmp_path):
+    from pipeline.bench import chunks_seconds
+    from pipeline.trial.protocol import chunks
+
+    log = tmp_path / "runs"
+
+    class Engine:  # appends each run's process and first candidate to a file the forks share
+        def run(self, grasp, approach, orient, preshapes):
+            with open(log, "a") as file:
+                file.write(f"{os.getpid()} {int(grasp[0, 0])}\n")
+
+    count = 10
+    grasp = np.arange(count, dtype=float)[:, None] * np.ones(3)
+    targets = (grasp, grasp + 1, grasp + 2, [None] * count)
+    cpu = min(os.sched_getaffinity(0))
+    seconds = chunks_seconds(Engine(), targets, 2, 2, [cpu])
+    assert list(seconds) == ["whole", 0, 1, "forked", "at once"]
+    assert seconds["forked"].shape == seconds["at once"].shape == (2, 2)
+    firsts = [int(trials[0]) for _, trials in chunks([0], [count], 2)]
+    runs = [line.split() for line in log.read_text().splitlines()]
+    # each round: the whole and the chunks here, then each chunk forked alone, then both forked
+    here = str(os.getpid())
+    assert [pid == here for pid, _ in runs] == ([True] * 3 + [False] * 4) * 2
+    assert [int(first) for _, first in runs[3:5]] == firsts and sorted(int(first) for _, first in runs[5:7]) == firsts
+    assert len({pid for pid, _ in runs[3:7]}) == 4  # a fresh copy for every chunk
+
+
+def test_the_together_factor_is_the_median_of_the_rounds_longest_together_over_alone():
+    from pipeline.bench import together_factor
+
+    forked = np.array([[1.0, 2.0], [1.0, 1.0], [0.5, 0.5]])
+    together = np.array([[1.5, 2.2], [2.0, 1.0], [0.5, 0.6]])
+    # rounds: 2.2 / 2.0, 2.0 / 1.0, 0.6 / 0.5
+    assert abs(together_factor(forked, together) - 1.2) < 1e-12
 
 
 def test_the_ratio_with_chunks_divides_one_cores_whole_by_the_longest_chunk_after_the_set_up():
