@@ -155,6 +155,29 @@ def test_franka_hand_from_pybullet_data_closes_on_a_cube_with_both_fingers():
     assert result.finger_stops == ("contact", "contact")
 
 
+def test_a_trial_grades_on_one_blas_thread_and_gives_the_caller_its_threads_back(monkeypatch):
+    import pipeline.trial.engine as engine_module
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def blas_threads():
+        return [info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"]
+
+    seen, grade = [], engine_module.epsilon_quality
+
+    def recording(*args, **kwargs):
+        seen.append(blas_threads())
+        return grade(*args, **kwargs)
+
+    monkeypatch.setattr(engine_module, "epsilon_quality", recording)
+    # OpenBLAS's helpers would spin on the cores the trial processes fill: whatever the caller set
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = blas_threads()
+        result = GraspEngine(cube(), HANDS["franka"]).trial([0, 0, 0], [0, 0, -1], [1, 0, 0])
+        assert result.outcome == "force_closure" and before and max(before) == 2
+        assert seen and all(threads == [1] * len(before) for threads in seen)
+        assert blas_threads() == before
+
+
 def test_franka_from_an_exported_spec_gives_the_same_trial(tmp_path):
     cube = surface("primitive:box", extents=(0.04, 0.04, 0.04))
     user = get_hand(str(export_hand(HANDS["franka"], tmp_path)))

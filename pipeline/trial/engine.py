@@ -53,6 +53,7 @@ from ..errors import BadInputError
 from ..geometry.mass import torque_reference
 from ..geometry.mesh_query import ObjectMesh
 from ..hands.kinematics import base_poses, hand_model, link_poses, point_velocities
+from ..threads import on_one_blas_thread
 from ..tol import tol
 from .contacts import region_corners
 from .proximity import collides, measure
@@ -176,6 +177,7 @@ class GraspEngine:
         """One trial (see :meth:`run`)."""
         return self.run([grasp_point], [approach], [orient], [preshape])[0]
 
+    @on_one_blas_thread  # OpenBLAS's helpers would spin on the cores the trial processes fill
     def run(self, grasp, approach, orient, preshapes, mu=None):
         """Trials of the candidates (n, 3) ``grasp`` (P_g), ``approach`` (P_d), ``orient`` (P_o),
         metres and unit vectors in the object frame, with ``preshapes`` (n,) names (None: the
@@ -231,6 +233,7 @@ class GraspEngine:
         self._lap("contacts", start)
         return results
 
+    @on_one_blas_thread
     def replay(self, base, joints):
         """Grade hands already closed, as :meth:`run` grades a trial once its fingers stopped:
         the contacts of the hand at exactly this configuration, then the quality.
