@@ -304,6 +304,7 @@ def at_once(calls, cpus):
             status = 1
             try:
                 os.close(read)
+                os.close(go)  # a parent that fails before releasing them ends their wait (EOF)
                 os.sched_setaffinity(0, {cpu})
                 os.read(release, 1)
                 start = time.perf_counter()
