@@ -289,46 +289,65 @@ def interleaved_seconds(runs, rounds, clock=time.perf_counter, own=()):
     return {name: np.array(values) for name, values in seconds.items()}
 
 
-def at_once(calls, cpus):
+def at_once(calls, cpus, runs=1):
     """Runs ``calls`` (callables) at the same time, each in a process forked from this one (a
-    copy sharing its memory until written) and held to its CPU of ``cpus``; released together
-    once all are forked. Returns (len(calls),) seconds, each call's own: what the machine gives
-    the same work on several cores with no pool in between. Raises RuntimeError, with the
-    child's error, where a call fails."""
-    release, go = os.pipe()
-    children = []
-    for call, cpu in zip(calls, cpus, strict=True):
-        read, write = os.pipe()
-        pid = os.fork()
-        if pid == 0:  # the child: only os._exit leaves it (no atexit, no parent's buffers)
-            status = 1
-            try:
-                os.close(read)
-                os.close(go)  # a parent that fails before releasing them ends their wait (EOF)
-                os.sched_setaffinity(0, {cpu})
-                os.read(release, 1)
-                start = time.perf_counter()
-                call()
-                os.write(write, f"{time.perf_counter() - start!r}".encode())
-                status = 0
-            except BaseException as error:  # noqa: BLE001 (reported to the parent)
-                os.write(write, f"error: {type(error).__name__}: {error}".encode())
-            finally:
-                os._exit(status)
-        os.close(write)
-        children.append((pid, read))
-    os.write(go, b"x" * len(children))
-    found = []
-    for pid, read in children:
-        with os.fdopen(read, "rb") as pipe:
-            found.append(pipe.read().decode())
-        os.waitpid(pid, 0)
-    for pipe in (release, go):
-        os.close(pipe)
-    failed = [message for message in found if not message or message.startswith("error")]
+    copy sharing its memory until written) and held to its CPU of ``cpus``, ``runs`` times,
+    every copy released together each time once all are ready. Returns (runs, len(calls))
+    seconds, each run's own: what the machine gives the same work on several cores with no pool
+    in between; a copy's first run also writes its pages for the first time, as a fresh worker
+    does, its later ones do not. Raises RuntimeError, with the child's error, where a call fails."""
+    children = []  # (pid, the copy's result pipe, the write end of its release pipe)
+    failed = None
+    try:
+        for call, cpu in zip(calls, cpus, strict=True):
+            read, write = os.pipe()
+            release, go = os.pipe()
+            pid = os.fork()
+            if pid == 0:  # the child: only os._exit leaves it (no atexit, no parent's buffers)
+                status = 1
+                try:
+                    # the parent's ends, the earlier copies' included: a parent that fails before
+                    # releasing a copy ends its wait (EOF)
+                    for end in [read, go, *(end for _, pipe, go_end in children for end in (pipe.fileno(), go_end))]:
+                        os.close(end)
+                    os.sched_setaffinity(0, {cpu})
+                    seconds = []
+                    for _ in range(runs):
+                        os.write(write, b"r")  # ready: the parent releases all once all are
+                        if not os.read(release, 1):
+                            raise RuntimeError("the parent ended before releasing this copy")
+                        start = time.perf_counter()
+                        call()
+                        seconds.append(time.perf_counter() - start)
+                    os.write(write, " ".join(map(repr, seconds)).encode())
+                    status = 0
+                except BaseException as error:  # noqa: BLE001 (reported to the parent)
+                    os.write(write, f"error: {type(error).__name__}: {error}".encode())
+                finally:
+                    os._exit(status)
+            os.close(write)
+            os.close(release)
+            children.append((pid, os.fdopen(read, "rb"), go))
+        for _ in range(runs):
+            for _, pipe, _ in children:
+                if (word := pipe.read(1)) != b"r":  # an error's first letter, or none: it ended
+                    failed = (word + pipe.read()).decode() or "it ended with no word"
+                    break
+            if failed:
+                break
+            for _, _, go in children:
+                os.write(go, b"x")
+        found = [pipe.read().decode() for _, pipe, _ in children] if not failed else []
+    finally:
+        for _, _, go in children:  # copies still waiting for a release end their wait (EOF)
+            os.close(go)
+        for pid, pipe, _ in children:
+            os.waitpid(pid, 0)
+            pipe.close()
+    failed = failed or next((message for message in found if message.startswith("error")), None)
     if failed:
-        raise RuntimeError(f"a call run at once failed: {failed[0] or 'it ended with no word'}")
-    return np.array([float(message) for message in found])
+        raise RuntimeError(f"a call run at once failed: {failed}")
+    return np.array([[float(value) for value in message.split()] for message in found]).T
 
 
 def timeline_parts(timeline):
@@ -391,21 +410,23 @@ def chunks_seconds(engine, targets, rounds, workers, cpus=None):
     (:func:`interleaved_seconds`): {"whole": (rounds,) float array, 0: the first chunk's, 1: ...}.
     With ``cpus`` (one per chunk), in the same rounds, the chunks in forked copies of this
     process (:func:`at_once`), ``"forked"`` one after another and ``"at once"`` together, each
-    on its CPU: (rounds, chunks) arrays."""
+    on its CPU and run twice (a fresh copy's first run, then its second): (rounds, 2, chunks)
+    arrays."""
     runs = _chunk_runs(engine, targets, workers)
     if cpus is not None:
         parts = [run for name, run in runs.items() if name != "whole"]
         cpus = [cpus[number % len(cpus)] for number in range(len(parts))]
-        runs["forked"] = lambda: np.concatenate([at_once([part], [cpu]) for part, cpu in zip(parts, cpus)])
-        runs["at once"] = lambda: at_once(parts, cpus)
+        runs["forked"] = lambda: np.concatenate([at_once([part], [cpu], 2) for part, cpu in zip(parts, cpus)], axis=1)
+        runs["at once"] = lambda: at_once(parts, cpus, 2)
     return interleaved_seconds(runs, rounds, own=("forked", "at once"))
 
 
-def together_factor(forked, together):
-    """How much longer the longest of a batch's chunks took run together than alone, from
-    :func:`chunks_seconds`' ``"forked"`` and ``"at once"`` (rounds, chunks) seconds: the median
-    of the rounds' ratios of their longest (1: the cores do not slow each other)."""
-    return float(np.median(together.max(axis=1) / forked.max(axis=1)))
+def together_factor(alone, together):
+    """How much longer the longest of a batch's chunks took in one way than in another, from
+    (rounds, chunks) seconds: the median of the rounds' ratios of their longest. With
+    :func:`chunks_seconds`' second runs ``"at once"`` over ``"forked"`` (alone): 1 where the
+    cores do not slow each other."""
+    return float(np.median(together.max(axis=1) / alone.max(axis=1)))
 
 
 def own_time_parts(stats):
@@ -469,8 +490,9 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     the one-core and all-core calls' time went (:func:`timeline_parts`, medians); and the first
     batch and the stage's tables in one chunk against the chunks run_trials deals them to, each
     alone on one core (:func:`chunks_seconds`, :func:`chunked_ratio`), the same chunks in forked
-    copies of this process alone and at once, a core each (:func:`at_once`,
-    :func:`together_factor`: what running together costs on the machine, no pool in between),
+    copies of this process alone and at once, a core each, run twice (:func:`at_once`,
+    :func:`together_factor`: what running together costs on the machine, no pool in between, and
+    what a fresh process's first run costs over its second),
     and where the first batch's own time goes in each (:func:`chunks_own_time`). Returns the rows. (The engine it
     replaced, one pybullet trial at a time, is gone; its rates beside this one's are in
     docs/benchmarks.md.)"""
@@ -511,7 +533,8 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
         "nothing (these set-ups, one core's trials shared by the cores); then the first batch and the stage's tables "
         "alone on one core in one chunk and in the chunks run_trials deals them to (medians), and the ratio had the "
         "workers cost nothing but those chunks' own time, and those chunks in forked copies of this process (no pool), "
-        "alone and at once on a core each, and the ratio had the workers cost nothing but the chunks' own time at once; "
+        "each run twice, alone and at once on a core each, and the ratio had the workers cost nothing but the chunks' "
+        "own time at once, in copies that had run them before and in fresh ones; "
         "last, the first batch's own time in one chunk and in those "
         "chunks, profiled: in the compiled kernels, in open3d's queries, and in the Python and numpy calls around them"
     )
@@ -661,20 +684,39 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
             )
             if "at once" not in found:
                 continue
-            forked, together = np.median(found["forked"], axis=0), np.median(found["at once"], axis=0)
-            factor = together_factor(found["forked"], found["at once"])
+            # (rounds, 2, chunks): each copy's first run, in pages it writes for the first time,
+            # as a pool's fresh worker, then its second
+            forked, together = found["forked"], found["at once"]
+            factor = together_factor(forked[:, 1], together[:, 1])
+            fresh = together_factor(together[:, 1], together[:, 0])
             reachable = chunked_ratio(one, every, whole, [max(pieces) * factor])
+            reachable_fresh = chunked_ratio(one, every, whole, [max(pieces) * factor * fresh])
+            medians = {
+                (key, name): np.median(found[key][:, run], axis=0)
+                for key in ("forked", "at once")
+                for run, name in enumerate(("first", "second"))
+            }
             row["chunks"][-1].update(
-                forked_s=[round(float(value), 4) for value in forked],
-                at_once_s=[round(float(value), 4) for value in together],
+                forked_first_s=[round(float(value), 4) for value in medians["forked", "first"]],
+                at_once_first_s=[round(float(value), 4) for value in medians["at once", "first"]],
+                forked_s=[round(float(value), 4) for value in medians["forked", "second"]],
+                at_once_s=[round(float(value), 4) for value in medians["at once", "second"]],
                 at_once_factor=round(factor, 3),
+                first_run_factor=round(fresh, 3),
                 ratio_with_chunks_at_once=round(reachable, 2),
+                ratio_with_first_runs_at_once=round(reachable_fresh, 2),
             )
+
+            def listed(key):
+                return " + ".join(f"{value:.3f}" for value in medians[key])
+
             out(
-                f"      the same chunks in forked copies of this process, a core each, s: alone "
-                f"{' + '.join(f'{value:.3f}' for value in forked)}, at once {' + '.join(f'{value:.3f}' for value in together)} "
-                f"(the longest x{factor:.3f}: what running together costs here now); ratio with these chunks at once "
-                f"and the batch's set-ups {reachable:.2f}"
+                f"      the same chunks in forked copies of this process, a core each, s: a copy's second run alone "
+                f"{listed(('forked', 'second'))}, at once {listed(('at once', 'second'))} (the longest x{factor:.3f}: "
+                f"what running together costs here now); its first alone {listed(('forked', 'first'))}, at once "
+                f"{listed(('at once', 'first'))} (the longest x{fresh:.3f} its second's: what a fresh process's first "
+                f"writes to its pages cost, as a pool's worker meets them); ratio with the second runs at once and the "
+                f"batch's set-ups {reachable:.2f}, with the first runs {reachable_fresh:.2f}"
             )
         row["own_time"] = {
             name: {key: round(value, 4) for key, value in found.items()} for name, found in own_time.items()

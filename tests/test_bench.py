@@ -2,6 +2,7 @@
 
 import cProfile
 import os
+import signal
 import pstats
 import time
 
@@ -201,8 +202,29 @@ def test_calls_run_at_once_each_in_a_forked_process_on_its_own_cpu(tmp_path):
 
     parent, before = os.getpid(), os.sched_getaffinity(0)
     seconds = at_once([call(0), call(1)], cpus)
-    assert seconds.shape == (2,) and (seconds >= 0).all()
+    assert seconds.shape == (1, 2) and (seconds >= 0).all()
     assert os.sched_getaffinity(0) == before  # the parent keeps its CPUs
+
+
+def test_each_run_at_once_starts_after_every_copy_ended_the_one_before(tmp_path):
+    from pipeline.bench import at_once
+
+    cpu = min(os.sched_getaffinity(0))
+
+    def call(number):
+        def run():  # a run's mark, written once the call has slept: a copy let go early would log before it
+            time.sleep(0.2 if number else 0.0)
+            with open(tmp_path / "log", "a") as file:
+                file.write(f"{number} {os.getpid()}\n")
+
+        return run
+
+    seconds = at_once([call(0), call(1)], [cpu, cpu], 3)
+    assert seconds.shape == (3, 2) and (seconds[:, 1] >= 0.2).all()
+    runs = [line.split() for line in (tmp_path / "log").read_text().splitlines()]
+    # copy 0 is fast and copy 1 slow, yet copy 0 starts each run only after copy 1's last
+    assert [number for number, _ in runs] == ["0", "1"] * 3
+    assert len({pid for _, pid in runs}) == 2  # each copy runs its call every time
 
 
 def test_a_call_that_fails_at_once_raises_its_error_in_the_caller():
@@ -214,6 +236,25 @@ def test_a_call_that_fails_at_once_raises_its_error_in_the_caller():
     cpu = min(os.sched_getaffinity(0))
     with pytest.raises(RuntimeError, match="ValueError: no trials"):
         at_once([lambda: None, broken], [cpu, cpu])
+    # a failure in a later run: the other copy, waiting to be let go, is not waited for forever
+    runs = []
+
+    def second_fails():  # each copy is a process of its own: the list counts that copy's runs
+        runs.append(1)
+        if len(runs) == 2:
+            raise ValueError("second run")
+
+    def hung(*_):
+        raise TimeoutError("at_once waited for a copy that ended")
+
+    before = signal.signal(signal.SIGALRM, hung)
+    signal.alarm(60)
+    try:
+        with pytest.raises(RuntimeError, match="ValueError: second run"):
+            at_once([lambda: None, second_fails], [cpu, cpu], 3)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, before)
 
 
 def test_the_chunks_bench_runs_the_chunks_forked_alone_and_at_once(tmp_path):
@@ -233,14 +274,19 @@ def test_the_chunks_bench_runs_the_chunks_forked_alone_and_at_once(tmp_path):
     cpu = min(os.sched_getaffinity(0))
     seconds = chunks_seconds(Engine(), targets, 2, 2, [cpu])
     assert list(seconds) == ["whole", 0, 1, "forked", "at once"]
-    assert seconds["forked"].shape == seconds["at once"].shape == (2, 2)
+    assert seconds["forked"].shape == seconds["at once"].shape == (2, 2, 2)  # rounds, runs, chunks
     firsts = [int(trials[0]) for _, trials in chunks([0], [count], 2)]
     runs = [line.split() for line in log.read_text().splitlines()]
-    # each round: the whole and the chunks here, then each chunk forked alone, then both forked
+    # each round: the whole and the chunks here, then each chunk forked alone, twice in its copy,
+    # then both forked at once, twice
     here = str(os.getpid())
-    assert [pid == here for pid, _ in runs] == ([True] * 3 + [False] * 4) * 2
-    assert [int(first) for _, first in runs[3:5]] == firsts and sorted(int(first) for _, first in runs[5:7]) == firsts
-    assert len({pid for pid, _ in runs[3:7]}) == 4  # a fresh copy for every chunk
+    assert [pid == here for pid, _ in runs] == ([True] * 3 + [False] * 8) * 2
+    alone, together = runs[3:7], runs[7:11]
+    assert [int(first) for _, first in alone] == [firsts[0], firsts[0], firsts[1], firsts[1]]
+    assert alone[0][0] == alone[1][0] != alone[2][0] == alone[3][0]  # a copy runs its chunk again
+    # at once, each run of both copies before the next
+    assert sorted(int(first) for _, first in together[:2]) == sorted(int(first) for _, first in together[2:]) == firsts
+    assert len({pid for pid, _ in runs[3:11]}) == 4  # a fresh copy for every chunk, each time
 
 
 def test_the_together_factor_is_the_median_of_the_rounds_longest_together_over_alone():
