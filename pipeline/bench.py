@@ -294,8 +294,8 @@ def at_once(calls, cpus, runs=1):
     copy sharing its memory until written) and held to its CPU of ``cpus``, ``runs`` times,
     every copy released together each time once all are ready. Returns (runs, len(calls))
     seconds, each run's own: what the machine gives the same work on several cores with no pool
-    in between; a copy's first run also writes its pages for the first time, as a fresh worker
-    does, its later ones do not. Raises RuntimeError, with the child's error, where a call fails."""
+    in between; a copy's first run also copies each page it writes (shared with this process
+    until then), its later ones do not. Raises RuntimeError, with the child's error, where a call fails."""
     children = []  # (pid, the copy's result pipe, the write end of its release pipe)
     failed = None
     try:
@@ -492,7 +492,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     alone on one core (:func:`chunks_seconds`, :func:`chunked_ratio`), the same chunks in forked
     copies of this process alone and at once, a core each, run twice (:func:`at_once`,
     :func:`together_factor`: what running together costs on the machine, no pool in between, and
-    what a fresh process's first run costs over its second),
+    what a copy's first run costs over its second),
     and where the first batch's own time goes in each (:func:`chunks_own_time`). Returns the rows. (The engine it
     replaced, one pybullet trial at a time, is gone; its rates beside this one's are in
     docs/benchmarks.md.)"""
@@ -684,8 +684,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
             )
             if "at once" not in found:
                 continue
-            # (rounds, 2, chunks): each copy's first run, in pages it writes for the first time,
-            # as a pool's fresh worker, then its second
+            # (rounds, 2, chunks): each copy's first run, copying the pages it writes, then its second
             forked, together = found["forked"], found["at once"]
             factor = together_factor(forked[:, 1], together[:, 1])
             fresh = together_factor(together[:, 1], together[:, 0])
@@ -714,8 +713,8 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
                 f"      the same chunks in forked copies of this process, a core each, s: a copy's second run alone "
                 f"{listed(('forked', 'second'))}, at once {listed(('at once', 'second'))} (the longest x{factor:.3f}: "
                 f"what running together costs here now); its first alone {listed(('forked', 'first'))}, at once "
-                f"{listed(('at once', 'first'))} (the longest x{fresh:.3f} its second's: what a fresh process's first "
-                f"writes to its pages cost, as a pool's worker meets them); ratio with the second runs at once and the "
+                f"{listed(('at once', 'first'))} (the longest x{fresh:.3f} its second's: what a copy's first writes to "
+                f"the pages it shares with this process cost here); ratio with the second runs at once and the "
                 f"batch's set-ups {reachable:.2f}, with the first runs {reachable_fresh:.2f}"
             )
         row["own_time"] = {
