@@ -295,7 +295,8 @@ def at_once(calls, cpus, runs=1):
     every copy released together each time once all are ready. Returns (runs, len(calls))
     seconds, each run's own: what the machine gives the same work on several cores with no pool
     in between; a copy's first run also copies each page it writes (shared with this process
-    until then), its later ones do not. Raises RuntimeError, with the child's error, where a call fails."""
+    until then), its later ones do not. Raises RuntimeError, with the child's error, where a
+    call fails."""
     children = []  # (pid, the copy's result pipe, the write end of its release pipe)
     failed = None
     try:

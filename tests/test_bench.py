@@ -2,8 +2,8 @@
 
 import cProfile
 import os
-import signal
 import pstats
+import signal
 import time
 
 import numpy as np
