@@ -16,7 +16,7 @@ import functools
 def _controller():
     from threadpoolctl import ThreadpoolController
 
-    return ThreadpoolController()  # the BLAS libraries loaded by now (numpy's, scipy's): 6 ms, once
+    return ThreadpoolController()  # the BLAS libraries loaded by now (numpy's, scipy's): 6-21 ms, once
 
 
 def one_blas_thread():

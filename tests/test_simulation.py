@@ -536,7 +536,10 @@ def test_run_trials_keeps_the_callers_objects_out_of_the_collectors_passes_while
     assert counts and min(counts) > 10_000 and _freeze_count() == 0
 
 
-def test_the_timeline_shows_each_chunk_where_it_ran_after_the_engines_it_needed():
+def test_the_timeline_shows_each_chunk_where_it_ran_after_the_engines_it_needed(monkeypatch):
+    from pipeline.trial import protocol
+
+    monkeypatch.setattr(protocol, "kernels_loaded", lambda: True)  # a caller that has run trials
     table = baseline_candidates(cube(), HANDS["parallel_jaw"], 6, np.random.default_rng(4))
     timeline = []
     run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=2, timeline=timeline)
@@ -557,6 +560,38 @@ def test_the_timeline_shows_each_chunk_where_it_ran_after_the_engines_it_needed(
     (worker,) = [span for span in spans["chunk"] if span[0] == 1]
     (back,) = spans["results"]
     assert worker[1] >= ship[1] and back[0] == 1 and back[1] == worker[2] and back[2] <= call[2]
+
+
+def test_a_caller_without_the_kernels_leaves_every_chunk_to_as_many_workers(monkeypatch):
+    from pipeline.trial import protocol
+
+    table = baseline_candidates(cube(), HANDS["parallel_jaw"], 6, np.random.default_rng(4))
+    serial = run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=1)
+    monkeypatch.setattr(protocol, "kernels_loaded", lambda: False)  # a stage's fresh process
+    timeline = []
+    results = run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=2, timeline=timeline)
+    # the same two chunks of three rows, one in each of two workers, none here
+    ran = sorted((process, end) for step, process, _, end in timeline if step == "chunk")
+    assert [process for process, _ in ran] == [1, 2]
+    (setup,) = [(start, end) for step, _, start, end in timeline if step == "set-up"]
+    assert all(end >= setup[1] for _, end in ran)
+    assert [(r.outcome, r.epsilon, r.joint_positions) for r in results[0]] == [
+        (r.outcome, r.epsilon, r.joint_positions) for r in serial[0]
+    ]
+
+
+def test_a_process_has_the_kernels_once_it_has_run_a_trial_not_before():
+    import subprocess
+    import sys
+
+    code = (
+        "import pickle, sys; from pipeline.hands.spec import HANDS; "
+        "from pipeline.trial.engine import GraspEngine, kernels_loaded; "
+        "engine, before = GraspEngine(pickle.load(sys.stdin.buffer), HANDS['parallel_jaw']), kernels_loaded(); "
+        "engine.trial([0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]); print(before, kernels_loaded())"
+    )
+    found = subprocess.run([sys.executable, "-c", code], input=pickle.dumps(cube()), capture_output=True, check=True)
+    assert found.stdout.split() == [b"False", b"True"]
 
 
 def test_an_engines_process_and_a_pool_worker_keep_freed_memory(monkeypatch, tmp_path):

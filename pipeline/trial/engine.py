@@ -588,6 +588,12 @@ def grade(regions, model, settings, *, centre, torque_scale, mu=None, **pose):
 _WORKER = {}
 
 
+def kernels_loaded():
+    """Whether this process has the engine's compiled kernels loaded: it has run a trial, or is
+    a pool worker (forked from a server that loaded them, :mod:`pipeline.kernel_cache`)."""
+    return bool(_closing_step.signatures)
+
+
 def start_worker(engines):
     """Set up this process to run trials with ``engines`` ({hand number: GraspEngine})."""
     _WORKER.update(engines=engines)

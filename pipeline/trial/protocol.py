@@ -49,6 +49,7 @@ from .engine import (
     OUTCOMES,
     GraspEngine,
     check_simulable,
+    kernels_loaded,
     object_mesh,
     run_chunk,
     start_pool_worker,
@@ -162,13 +163,14 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
         then runs chunks itself, while ``workers - 1`` worker processes (:mod:`pipeline.pool`),
         started first, wait for a copy of them and take theirs, each the next chunk left; the
         first worker computes the object's distance grid meanwhile, the engines' costly part.
-        Results do not depend on it.
+        A process that has run no trial yet (a stage's) runs none: ``workers`` workers take
+        every chunk. Results do not depend on it.
     progress : callable(int, int), optional
         Called with the number of trials just finished and the total.
     timeline : list, optional
         Where the call's time went, appended as (step, process, start, end) spans in
         ``time.perf_counter`` seconds (process 0 this one, 1 to ``workers - 1`` the workers):
-        ``start workers`` (the grid's task and the threads that fork them started), ``set-up`` (the engines built), ``ship``
+        ``start workers`` (the threads that fork them started), ``set-up`` (the engines built), ``ship``
         (their copy written for the workers), ``chunk`` (each chunk's trials, where they ran),
         ``results`` (a worker's chunk ended to its results here), ``call`` (the whole call).
 
@@ -217,7 +219,18 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
     )
     used = sorted({number for (number, _), length in zip(tables, lengths) if length})
     feeders, failed = [], []
-    helpers = min(workers, len(parts)) - 1
+    # the object's distance grid is most of an engine's set-up: built once, by the first worker
+    # (on every core) while this process builds the rest, or here without workers. The first
+    # worker's thread submits its task: a submit waits until the fork server has done its
+    # imports, about 2 s after a stage's start (a stage's 2-core call waited 0.99 s for it here,
+    # before its set-up), and this process builds the rest meanwhile
+    grid = concurrent.futures.Future()  # the grid's task, once submitted
+    # a process that has run no trial loads the engine's compiled kernels in its first chunk
+    # (a stage's ARMAR-III trials on the duck: 19 kernels, 0.56 s; its chunk took 1.62-1.80 s,
+    # the worker's 1.19-1.26 s), which the workers have from their server: it leaves its share
+    # of the chunks to one more worker
+    runs_chunks = workers == 1 or kernels_loaded()
+    helpers = min(workers, len(parts)) - int(runs_chunks)
     # the worker processes start while this one builds the engines, then wait on the queue
     # ``shipped`` for the file that holds them, pickled (a pipe would move them 64 KB a write,
     # each waiting for this thread to let go of the interpreter: a worker started 0.06 s late)
@@ -241,35 +254,40 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
         for _ in range(helpers):
             shipped.put(copy)
 
-    # one thread per worker process forks it (its first chunk's submit) while this one builds the
+    # one thread per worker process forks it (its first submit) while this one builds the
     # engines, then keeps it busy, chunk after chunk: the fork is a wait on the fork server
     # (0.006-0.017 s) with the interpreter lock let go, and a chunk's candidates, a few arrays,
     # pickle at once
     def feed(number, process):
         try:
+            if process == 1:  # the grid's task first, so that a worker takes it before any chunk
+                grid.set_result(
+                    executor.submit(grid_distances, surface.vertices, surface.faces, settings.grid_cells)
+                    if used
+                    else None
+                )
+            else:
+                grid.result()
             while number is not None:
                 finish(number, process, *executor.submit(run_chunk, *chunk_of(number)).result())
                 number = take()
         except BaseException as error:  # noqa: BLE001 (raised again in the caller's thread)
+            if not grid.done():
+                grid.set_exception(error)
             failed.append(error)
             with lock:
                 left.clear()
 
     try:
-        # the object's distance grid is most of an engine's set-up: built once, by the first
-        # worker (on every core) while this process builds the rest, or here without workers
-        grid = (
-            executor.submit(grid_distances, surface.vertices, surface.faces, settings.grid_cells)
-            if executor and used
-            else None
-        )
         for process in range(1, helpers + 1):
             feeders.append(threading.Thread(target=feed, args=(take(), process), daemon=True))
             feeders[-1].start()
         forked = time.perf_counter()
         spans.append(("start workers", 0, called, forked))
         try:
-            mesh = object_mesh(surface, settings, grid.result if grid else None) if used else None
+            mesh = (
+                object_mesh(surface, settings, (lambda: grid.result().result()) if executor else None) if used else None
+            )
         except concurrent.futures.BrokenExecutor as error:
             raise _worker_error(surface, total, workers) from error
         engines = {number: GraspEngine(surface, hands[number], settings, mesh=mesh) for number in used}
@@ -281,7 +299,7 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
             spans.append(("ship", 0, built, time.perf_counter()))
         start_worker(engines)
         try:
-            while (number := take()) is not None:
+            while runs_chunks and (number := take()) is not None:
                 finish(number, 0, *run_chunk(*chunk_of(number)))
         except BaseException:
             with lock:
