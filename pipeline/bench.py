@@ -88,7 +88,7 @@ def run_bench(
         tables["checks"] = run_check_bench(out=out)
         out("")
     if only in (None, "stages"):
-        tables["stages"] = run_stage_bench(out=out)
+        tables["stages"] = run_stage_bench(repeats=repeats, out=out)
         out("")
     if only in (None, "evaluate"):
         tables["evaluate"] = run_evaluate_bench(out=out)
@@ -881,13 +881,15 @@ def _profile_parts(stats, parts):
     return found
 
 
-def run_stage_bench(*, data="data", object_name="duck", scale="1.0", hand="barrett", out=print):
+def run_stage_bench(*, data="data", object_name="duck", scale="1.0", hand="barrett", repeats=3, out=print):
     """Where the time of the default run's ``simulate``, ``decompose`` and ``check`` stages goes:
     each stage's command (as ``dvc repro`` runs it, on one core as in a ``make run`` lane) on
     ``data/<object>/<scale>`` (the DAG's artefacts: run ``dvc repro`` or ``dvc pull`` first),
     its outputs in a temporary folder, profiled. Prints per stage the process's wall time and
     its parts: interpreter start, imports (wherever they happen), reading inputs, the work,
-    writing; returns the rows."""
+    writing; then, with several cores, the ``simulate`` command unprofiled on one core and on
+    every core (its trial workers), ``repeats`` rounds in turn: medians and the median of the
+    rounds' ratios. Returns the rows."""
     import os
     import pstats
     import subprocess
@@ -951,11 +953,54 @@ def run_stage_bench(*, data="data", object_name="duck", scale="1.0", hand="barre
                 f"{stage:10} {wall:7.1f} {started:7.1f} {imports:7.1f}  "
                 + ", ".join(f"{name} {seconds:.1f}" for name, seconds in parts.items())
             )
+        cores = default_workers(0)
+        if cores > 1:
+            command = [sys.executable, "-m", "stages.simulate", *map(str, commands["simulate"])]
+            seconds = interleaved_seconds(
+                {
+                    "core": lambda: _stage_command(command, {min(os.sched_getaffinity(0))}),
+                    "all": lambda: _stage_command(command),
+                },
+                repeats,
+            )
+            one_core, all_cores = (float(np.median(seconds[key])) for key in ("core", "all"))
+            ratio = float(np.median(seconds["core"] / seconds["all"]))
+            rows.append(
+                dict(
+                    stage="simulate",
+                    cores=cores,
+                    one_core_s=round(one_core, 2),
+                    all_cores_s=round(all_cores, 2),
+                    ratio=round(ratio, 2),
+                )
+            )
+            out(
+                f"simulate unprofiled ({repeats} rounds, in turn): 1 core {one_core:.2f} s, {cores} cores "
+                f"{all_cores:.2f} s, ratio {ratio:.2f}"
+            )
     out(
         "start: interpreter start and exit, outside the profile; imports: wherever they happen, so also inside "
         "the parts they happen in (other: the rest, top-level imports included)"
     )
     return rows
+
+
+def _stage_command(command, cpus=None):
+    """Run a stage's ``command`` (from the repository root), held to ``cpus`` when given; raises
+    with its output when it fails. Its output goes to a file: the trial workers' fork server
+    holds the command's streams until it ends, after the command."""
+    import subprocess
+    import tempfile
+
+    from .dag import ROOT
+
+    with tempfile.TemporaryFile("w+") as output:
+        process = subprocess.Popen(command, cwd=ROOT, stdout=output, stderr=subprocess.STDOUT, text=True)
+        if cpus:
+            os.sched_setaffinity(process.pid, cpus)
+        if process.wait():
+            output.seek(0)
+            raise RuntimeError(f"{' '.join(command)} failed:\n{output.read()}")
 
 
 def occupancy(spans):

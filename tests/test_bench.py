@@ -55,6 +55,21 @@ def test_every_stage_part_names_a_function_of_this_tree():
                 assert f"def {function}(" in text, f"{stage} part {name!r}: {suffix} has no {function}"
 
 
+def test_a_stage_command_runs_on_the_cpus_given_and_a_failed_one_raises_with_its_output(tmp_path):
+    import sys
+
+    from pipeline.bench import _stage_command
+
+    cpu = min(os.sched_getaffinity(0))
+    found = tmp_path / "cpus.txt"
+    # the process as it starts: held to the CPU once started (a stage's threads start later)
+    code = f"import os, time; time.sleep(0.2); open({str(found)!r}, 'w').write(str(sorted(os.sched_getaffinity(0))))"
+    _stage_command([sys.executable, "-c", code], {cpu})
+    assert found.read_text() == str([cpu])
+    with pytest.raises(RuntimeError, match="(?s)failed:.*no such stage"):
+        _stage_command([sys.executable, "-c", "import sys; print('no such stage'); sys.exit(3)"])
+
+
 def test_occupancy_counts_the_seconds_at_each_number_of_running_stages():
     from pipeline.bench import occupancy
 

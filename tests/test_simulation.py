@@ -526,6 +526,32 @@ def test_a_pool_worker_keeps_its_start_out_of_the_garbage_collectors_full_passes
         assert counted.result() > 10_000  # numpy's, open3d's, the engine's objects
 
 
+def test_a_pool_worker_runs_every_built_in_hand_without_importing_trimesh(tmp_path):
+    import concurrent.futures
+
+    from pipeline import pool
+    from pipeline.arrays import vectors
+    from pipeline.trial.engine import start_pool_worker
+    from worker_probe import trials_and_trimesh
+
+    # the fork server leaves trimesh out (0.4 s of its start): a worker must never need it
+    hands = list(HANDS.values())
+    (tmp_path / "engines.pickle").write_bytes(
+        pickle.dumps({number: GraspEngine(cube(), hand) for number, hand in enumerate(hands)})
+    )
+    pool.start()
+    shipped = pool.context().SimpleQueue()
+    with concurrent.futures.ProcessPoolExecutor(
+        1, pool.context(), initializer=start_pool_worker, initargs=(shipped,)
+    ) as executor:
+        shipped.put(str(tmp_path / "engines.pickle"))
+        for number, hand in enumerate(hands):
+            table = baseline_candidates(cube(), hand, 2, np.random.default_rng(number))
+            targets = [vectors(table, name) for name in ("grasp", "approach", "orient")]
+            outcomes, imported = executor.submit(trials_and_trimesh, number, *targets, list(table.preshape)).result()
+            assert len(outcomes) == 2 and set(outcomes) <= set(OUTCOMES) and not imported, hand.name
+
+
 def test_run_trials_keeps_the_callers_objects_out_of_the_collectors_passes_while_it_runs():
     assert _freeze_count() == 0, "the test process froze objects before the test"
     counts = []

@@ -44,6 +44,40 @@ def run(command, cwd, address=None, **env):
     return subprocess.run(command, cwd=cwd, env=environment, capture_output=True, text=True)
 
 
+# stands in for a stage module as its process ends: a thread that is not a daemon writes a file
+# after a pause, and an object left to the interpreter's teardown would write another
+SETTLING = """
+import sys, threading, time
+from pathlib import Path
+out = Path(sys.argv[1])
+def late():
+    time.sleep(0.3)
+    (out / "thread").write_text("done")
+threading.Thread(target=late).start()
+class Left:
+    def __del__(self):
+        (out / "teardown").write_text("ran")
+left = Left()
+print("settling", flush=True)
+sys.exit(3)
+"""
+
+
+def test_a_stage_command_run_here_ends_with_its_threads_not_after_the_interpreters_teardown(work, tmp_path):
+    # a stage package with this project's stages/__init__.py and the module above as a stage
+    (tmp_path / "stages").mkdir()
+    (tmp_path / "stages" / "__init__.py").write_text((REPO / "stages" / "__init__.py").read_text())
+    (tmp_path / "stages" / "settling.py").write_text(SETTLING)
+    for folder in ("here", "script"):
+        (work / folder).mkdir()
+    done = run([sys.executable, "-m", "stages.settling", str(work / "here")], work)
+    assert (done.returncode, done.stdout) == (3, "settling\n")
+    assert (work / "here" / "thread").read_text() == "done" and not (work / "here" / "teardown").exists()
+    # the same module as a plain script: the teardown would have run
+    plain = run([sys.executable, str(tmp_path / "stages" / "settling.py"), str(work / "script")], work)
+    assert plain.returncode == 3 and (work / "script" / "teardown").read_text() == "ran"
+
+
 def test_a_handed_command_runs_in_a_child_of_the_server_with_its_arguments_streams_and_status(work):
     with repro.warm_server() as ready:
         address = ready()
