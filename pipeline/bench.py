@@ -892,12 +892,10 @@ def run_stage_bench(*, data="data", object_name="duck", scale="1.0", hand="barre
     rounds' ratios. Returns the rows."""
     import os
     import pstats
-    import subprocess
     import sys
     import tempfile
     from pathlib import Path
 
-    from .dag import ROOT
     from .errors import BadInputError
 
     run = Path(data) / object_name / scale
@@ -929,12 +927,8 @@ def run_stage_bench(*, data="data", object_name="duck", scale="1.0", hand="barre
             command = [sys.executable, "-m", "cProfile", "-o", str(profile), "-m", f"stages.{stage}"]
             command += [str(value) for value in arguments] + ["--log", str(folder / f"{stage}.mcap")]
             start = time.perf_counter()
-            process = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-            os.sched_setaffinity(process.pid, {min(os.sched_getaffinity(0))})  # one core, as a make run lane
-            output, _ = process.communicate()
+            _stage_command(command, {min(os.sched_getaffinity(0))})  # one core, as a make run lane
             wall = time.perf_counter() - start
-            if process.returncode:
-                raise RuntimeError(f"stage {stage} failed:\n{output}")
             stats = pstats.Stats(str(profile))
             parts = _profile_parts(stats, STAGE_PARTS[stage])
             imports = parts.pop("imports")
