@@ -27,7 +27,7 @@ from .hands.spec import HANDS
 from .params import CandidatesParams, ClassifyParams, MatParams, MedialAxisParams, Params, SampleParams, SimulateParams
 from .pool import default_workers
 from .trial.engine import GraspEngine
-from .trial.protocol import CHUNK, chunks, run_trials, trial_tables
+from .trial.protocol import CHUNK, TrialPool, chunks, run_trials, trial_tables
 
 #: run_trials' batches in the trial bench: a small and a median default simulate stage (make
 #: run's run up to 3,276 trials, median about 2,000)
@@ -486,7 +486,9 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     :mod:`pipeline.trial.reference` (pybullet's exact queries, the same protocol); and
     :func:`pipeline.trial.protocol.run_trials` of :data:`TRIAL_BATCHES` trials and of a default
     ``simulate`` stage's tables (:data:`STAGE_BATCH`: MAT and baseline) on one core
-    (:func:`one_core`), in one process and on every core, in ``repeats`` interleaved rounds
+    (:func:`one_core`), in one process, on every core with the workers of a :class:`TrialPool`
+    (started once for the whole bench, as an ablation's calls share theirs) and on every core with
+    each call's own workers (as a ``simulate`` stage's one call), in ``repeats`` interleaved rounds
     (:func:`interleaved_seconds`): rates are medians, ratios the median of each round's, and where
     the one-core and all-core calls' time went (:func:`timeline_parts`, medians); and the first
     batch and the stage's tables in one chunk against the chunks run_trials deals them to, each
@@ -497,6 +499,12 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     and where the first batch's own time goes in each (:func:`chunks_own_time`). Returns the rows. (The engine it
     replaced, one pybullet trial at a time, is gone; its rates beside this one's are in
     docs/benchmarks.md.)"""
+    with TrialPool() as trial_pool:
+        return _trial_bench(trials, reference_trials, repeats, out, trial_pool)
+
+
+def _trial_bench(trials, reference_trials, repeats, out, trial_pool):
+    """:func:`run_trial_bench`, its all-core calls with kept workers in ``trial_pool``."""
     from . import pool
     from .trial.reference import ReferenceEngine
 
@@ -512,17 +520,20 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
     out(f"grasp trials on the duck ({faces} triangles), {trials} random MAT candidates per hand; all cores = {cores}")
     out(
         f"engine: one core, the engine set up. run_trials (the engine's set-up included; {repeats} rounds, "
-        "the three ways in turn; rates: medians; ratios: the median of the rounds') of "
+        "the four ways in turn; rates: medians; ratios: the median of the rounds') of "
         f"{' and '.join(map(str, TRIAL_BATCHES))} trials (distinct candidates of the hand, the engine's first, "
         f"repeated only past all the duck has) and of a {STAGE_BATCH}: the tables of a default simulate stage "
         "on the duck (MAT candidates of 200 spheres and as many baseline ones; a stage has 400-3,300): one core (every "
-        "thread of the process held to one CPU), one process (its open3d threads on every core) and all "
-        "cores; ratio: all cores / one core (/ one process)"
+        "thread of the process held to one CPU), one process (its open3d threads on every core), all "
+        "cores with the bench's kept workers (a TrialPool, started before the rounds) and all cores with each "
+        "call's own (fresh) workers, as a simulate stage's one call has; ratio: all cores / one core "
+        "(/ one process; fresh workers / one core)"
     )
     out(
         f"{'hand':13} {'engine':>7}"
         + "".join(
-            f" | {batch:>5}: {'1 core':>7} {'1 proc':>7} {f'{cores} cores':>8} {'ratio':>11}" for batch in batches
+            f" | {batch:>5}: {'1 core':>7} {'1 proc':>7} {f'{cores} cores':>8} {'fresh':>7} {'ratio':>18}"
+            for batch in batches
         )
         + "  engine s in place/retreat/approach/closing/contacts; outcomes"
     )
@@ -593,20 +604,26 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
         for batch in batches:
             timelines = defaultdict(list)
 
-            def timed(workers, holder, kept):
+            def timed(workers, holder, found, shared=None):
                 def run():
                     timeline = []
                     with holder():
-                        run_trials(surface, [hand], runs[batch], settings, workers=workers, timeline=timeline)
-                    kept.append(timeline)
+                        run_trials(
+                            surface, [hand], runs[batch], settings, workers=workers, pool=shared, timeline=timeline
+                        )
+                    found.append(timeline)
 
                 return run
 
+            if batch == batches[0] and cores > 1:  # the kept workers' start and first calls, untimed
+                for _ in range(2):
+                    timed(cores, contextlib.nullcontext, [], trial_pool)()
             seconds = interleaved_seconds(
                 {
                     "core": timed(1, one_core, timelines["core"]),
                     "process": timed(1, contextlib.nullcontext, timelines["process"]),
-                    "all": timed(cores, contextlib.nullcontext, timelines["all"]),
+                    "all": timed(cores, contextlib.nullcontext, timelines["all"], trial_pool),
+                    "fresh": timed(cores, contextlib.nullcontext, timelines["fresh"]),
                 },
                 repeats,
             )
@@ -616,6 +633,7 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
                 parts[batch, key] = {name: round(float(value), 4) for name, value in found.median().items()}
             for key in ("core", "process"):
                 ratios[batch, key] = float(np.median(seconds[key] / seconds["all"]))
+            ratios[batch, "fresh"] = float(np.median(seconds["core"] / seconds["fresh"]))
         outcomes = Counter(result.outcome for result in new)
         share = "/".join(f"{seconds:.1f}" for seconds in steps.values())
         row = dict(
@@ -629,8 +647,10 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
                     one_core_per_s=round(rates[batch, "core"], 1),
                     one_process_per_s=round(rates[batch, "process"], 1),
                     all_cores_per_s=round(rates[batch, "all"], 1),
+                    all_cores_fresh_workers_per_s=round(rates[batch, "fresh"], 1),
                     ratio=round(ratios[batch, "core"], 2),
                     ratio_to_one_process=round(ratios[batch, "process"], 2),
+                    ratio_fresh_workers=round(ratios[batch, "fresh"], 2),
                     one_core_s=parts[batch, "core"],
                     all_cores_s=parts[batch, "all"],
                     free_workers_ratio=round(free_workers_ratio(parts[batch, "core"], parts[batch, "all"], cores), 2),
@@ -645,7 +665,8 @@ def run_trial_bench(*, trials=512, reference_trials=60, repeats=3, out=print):
             f"{name:13} {new_rate:7.1f}"
             + "".join(
                 f" | {batch:>5}: {rates[batch, 'core']:7.1f} {rates[batch, 'process']:7.1f} {rates[batch, 'all']:8.1f} "
-                f"{ratios[batch, 'core']:5.2f} ({ratios[batch, 'process']:4.2f})"
+                f"{rates[batch, 'fresh']:7.1f} {ratios[batch, 'core']:5.2f} ({ratios[batch, 'process']:4.2f}; "
+                f"{ratios[batch, 'fresh']:4.2f})"
                 for batch in batches
             )
             + f"  {share}; "

@@ -72,6 +72,14 @@ def test_the_default_row_is_a_plain_run_of_the_same_candidates_and_mu_1_never_lo
     assert table[table.variant == "default"].force_closure_pct.max() > 0
 
 
+def test_the_ablation_on_two_workers_gives_the_table_of_one_process():
+    params, variants = small_params(), (("mu", 1.0), ("approach_to_contact", False))
+    one = ablate(cube(), jaw_candidates(), [JAW], params, physics_trials=0, variants=variants)
+    two = ablate(cube(), jaw_candidates(), [JAW], params, physics_trials=0, variants=variants, workers=2)
+    assert len(one) == 6 and one.force_closure_pct.max() > 0
+    pd.testing.assert_frame_equal(one, two)
+
+
 def test_variants_keep_the_params_valid_and_a_repeated_variant_runs_once():
     base = SimulateParams()
     wide = variant_params(base, "contact_tolerance_m", 0.004)

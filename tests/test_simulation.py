@@ -4,7 +4,6 @@ import dataclasses
 import functools
 import itertools
 import pickle
-import queue
 import re
 import threading
 
@@ -20,6 +19,7 @@ from pipeline.params import SampleParams
 from pipeline.trial.engine import OUTCOMES, GraspEngine, object_mesh
 from pipeline.trial.protocol import (
     CHUNK,
+    TrialPool,
     baseline_candidates,
     chunks,
     run_trials,
@@ -503,6 +503,61 @@ def test_the_workers_copy_of_the_engines_is_removed_once_they_end(monkeypatch):
     assert len(written) == 1 and not os.path.exists(written[0][1])
 
 
+def _outcomes(results):
+    return [[(r.outcome, r.epsilon, r.joint_positions) for r in rows] for rows in results]
+
+
+def test_a_kept_pools_workers_run_each_call_with_that_calls_engines(monkeypatch, tmp_path):
+    import os
+
+    from pipeline.trial import protocol
+
+    # every call's engines in a file of the same name, as a freed temporary name may come again:
+    # a worker must still load each call's own
+    path = str(tmp_path / "engines.pickle")
+    monkeypatch.setattr(protocol.tempfile, "mkstemp", lambda **_: (os.open(path, os.O_CREAT | os.O_WRONLY), path))
+    calls = [
+        (
+            [HANDS["parallel_jaw"]],
+            [(0, baseline_candidates(cube(), HANDS["parallel_jaw"], 6, np.random.default_rng(4)))],
+        ),
+        ([HANDS["barrett"]], [(0, baseline_candidates(cube(), HANDS["barrett"], 6, np.random.default_rng(5)))]),
+        (
+            [HANDS["parallel_jaw"]],
+            [(0, baseline_candidates(cube(), HANDS["parallel_jaw"], 6, np.random.default_rng(6)))],
+        ),
+    ]
+    serial = [run_trials(cube(), hands, tables, None) for hands, tables in calls]
+    for caller_has_kernels in (True, False):  # the caller runs a chunk of each call, or none
+        monkeypatch.setattr(protocol, "kernels_loaded", lambda: caller_has_kernels)
+        with TrialPool() as kept:
+            found, executors = [], []
+            for hands, tables in calls:
+                timeline = []
+                found.append(run_trials(cube(), hands, tables, None, workers=2, pool=kept, timeline=timeline))
+                assert {process for step, process, _, _ in timeline if step == "chunk"} == (
+                    {0, 1} if caller_has_kernels else {1, 2}
+                )
+                assert not os.path.exists(path)  # removed once the call's chunks have run
+                executors.append(kept.executor(1))
+            assert all(executor is executors[0] for executor in executors)  # the same worker processes
+        assert [_outcomes(results) for results in found] == [_outcomes(results) for results in serial]
+
+
+def test_a_worker_killed_in_a_kept_pool_is_the_clear_error_and_the_next_call_starts_new_ones(monkeypatch):
+    from pipeline.errors import WorkerError
+    from pipeline.trial import protocol
+
+    table = baseline_candidates(cube(), HANDS["parallel_jaw"], 8, np.random.default_rng(2))
+    with TrialPool() as kept:
+        with monkeypatch.context() as patched:
+            patched.setattr(protocol, "grid_distances", _die)  # the first worker's task
+            with pytest.raises(WorkerError, match="a trial worker process ended abruptly.*8 trials"):
+                run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=2, pool=kept)
+        results = run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None, workers=2, pool=kept)
+    assert _outcomes(results) == _outcomes(run_trials(cube(), [HANDS["parallel_jaw"]], [(0, table)], None))
+
+
 def _freeze_count():
     import gc
 
@@ -516,14 +571,8 @@ def test_a_pool_worker_keeps_its_start_out_of_the_garbage_collectors_full_passes
     from pipeline.trial.engine import start_pool_worker
 
     pool.start()
-    shipped = pool.context().SimpleQueue()
-    with concurrent.futures.ProcessPoolExecutor(
-        1, pool.context(), initializer=start_pool_worker, initargs=(shipped,)
-    ) as executor:
-        counted = executor.submit(_freeze_count)
-        (tmp_path / "engines.pickle").write_bytes(pickle.dumps({}))
-        shipped.put(str(tmp_path / "engines.pickle"))  # the engines, once built: the worker waits
-        assert counted.result() > 10_000  # numpy's, open3d's, the engine's objects
+    with concurrent.futures.ProcessPoolExecutor(1, pool.context(), initializer=start_pool_worker) as executor:
+        assert executor.submit(_freeze_count).result() > 10_000  # numpy's, open3d's, the engine's objects
 
 
 def test_a_pool_worker_runs_every_built_in_hand_without_importing_trimesh(tmp_path):
@@ -540,15 +589,14 @@ def test_a_pool_worker_runs_every_built_in_hand_without_importing_trimesh(tmp_pa
         pickle.dumps({number: GraspEngine(cube(), hand) for number, hand in enumerate(hands)})
     )
     pool.start()
-    shipped = pool.context().SimpleQueue()
-    with concurrent.futures.ProcessPoolExecutor(
-        1, pool.context(), initializer=start_pool_worker, initargs=(shipped,)
-    ) as executor:
-        shipped.put(str(tmp_path / "engines.pickle"))
+    copy = (str(tmp_path / "engines.pickle"), 0)
+    with concurrent.futures.ProcessPoolExecutor(1, pool.context(), initializer=start_pool_worker) as executor:
         for number, hand in enumerate(hands):
             table = baseline_candidates(cube(), hand, 2, np.random.default_rng(number))
             targets = [vectors(table, name) for name in ("grasp", "approach", "orient")]
-            outcomes, imported = executor.submit(trials_and_trimesh, number, *targets, list(table.preshape)).result()
+            outcomes, imported = executor.submit(
+                trials_and_trimesh, copy, number, *targets, list(table.preshape)
+            ).result()
             assert len(outcomes) == 2 and set(outcomes) <= set(OUTCOMES) and not imported, hand.name
 
 
@@ -627,9 +675,5 @@ def test_an_engines_process_and_a_pool_worker_keep_freed_memory(monkeypatch, tmp
     monkeypatch.setattr(engine, "keep_freed_memory", lambda: calls.append(True))
     monkeypatch.setattr(engine.gc, "freeze", lambda: None)  # not this test process's objects
     engine.GraspEngine(cube(), HANDS["parallel_jaw"])
-    (tmp_path / "engines.pickle").write_bytes(pickle.dumps({}))
-    shipped = queue.SimpleQueue()  # stands for the caller's queue of the engines' file
-    shipped.put(tmp_path / "engines.pickle")
-    engine.start_pool_worker(shipped)
-    engine.stop_worker()
+    engine.start_pool_worker()
     assert len(calls) == 2  # pipeline/allocator.py's test shows what it does

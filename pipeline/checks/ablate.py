@@ -34,7 +34,7 @@ from .. import seeds
 from ..params import Params
 from ..trial.engine import CLOSED, check_simulable
 from ..trial.protocol import PLANNERS as ALL_PLANNERS
-from ..trial.protocol import baseline_candidates, run_trials, select_candidates
+from ..trial.protocol import TrialPool, baseline_candidates, run_trials, select_candidates
 
 #: the planners ablated: the MAT candidates against the baseline
 PLANNERS = ALL_PLANNERS[:2]
@@ -176,34 +176,38 @@ def ablate(
 
         parts = decompose(surface, vhacd_resolution=params.checks.vhacd_resolution).parts
     rows = []
-    for hand, tables in jobs:
-        judge = _Physics(surface, hand, params, parts) if physics_trials else None
-        order = [
-            seeds.ablation_order(seed, hand.name, number).permutation(len(table)) for number, table in enumerate(tables)
-        ]
-        try:
-            for variant, simulate in runs:
-                results = run_trials(
-                    surface,
-                    [hand],
-                    [(0, table) for table in tables],
-                    simulate,
-                    workers=workers,
-                    progress=step,
-                )
-                for planner, outcomes, priority in zip(PLANNERS, results, order):
-                    rows.append(
-                        {
-                            "hand": hand.name,
-                            "variant": variant,
-                            "setting": settings_text(simulate, base) or "params",
-                            "planner": planner,
-                            **_rates(outcomes, priority, physics_trials, judge, simulate.mu, planner),
-                        }
+    # one set of worker processes for every hand's and variant's calls
+    with TrialPool() as trial_pool:
+        for hand, tables in jobs:
+            judge = _Physics(surface, hand, params, parts) if physics_trials else None
+            order = [
+                seeds.ablation_order(seed, hand.name, number).permutation(len(table))
+                for number, table in enumerate(tables)
+            ]
+            try:
+                for variant, simulate in runs:
+                    results = run_trials(
+                        surface,
+                        [hand],
+                        [(0, table) for table in tables],
+                        simulate,
+                        workers=workers,
+                        pool=trial_pool,
+                        progress=step,
                     )
-        finally:
-            if judge:
-                judge.close()
+                    for planner, outcomes, priority in zip(PLANNERS, results, order):
+                        rows.append(
+                            {
+                                "hand": hand.name,
+                                "variant": variant,
+                                "setting": settings_text(simulate, base) or "params",
+                                "planner": planner,
+                                **_rates(outcomes, priority, physics_trials, judge, simulate.mu, planner),
+                            }
+                        )
+            finally:
+                if judge:
+                    judge.close()
     return _deltas(pd.DataFrame(rows, columns=list(COLUMNS[:-2])))
 
 

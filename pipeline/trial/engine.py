@@ -599,34 +599,35 @@ def start_worker(engines):
     _WORKER.update(engines=engines)
 
 
-def start_pool_worker(shipped):
-    """Set up a worker process of a pool: its first chunk (:func:`run_chunk`) runs with the
-    engines pickled in the file whose path its caller puts on the queue ``shipped`` once they
-    are built; until then the process can take other tasks (the object's distance grid:
-    :func:`pipeline.geometry.mesh_query.grid_distances`). The objects so far (the imported
-    libraries'), and the engines once loaded, are moved out of the garbage collector's reach: a
-    full collection walked them all, about 0.12 s, between one chunk and the next. Its malloc
-    keeps freed memory (:func:`pipeline.allocator.keep_freed_memory`), as the caller's does."""
+def start_pool_worker():
+    """Set up a worker process of a pool: the objects so far (the imported libraries'), and each
+    call's engines once loaded (:func:`run_chunk`), are moved out of the garbage collector's
+    reach: a full collection walked them all, about 0.12 s, between one chunk and the next. Its
+    malloc keeps freed memory (:func:`pipeline.allocator.keep_freed_memory`), as the caller's does."""
     gc.freeze()
     keep_freed_memory()
-    _WORKER.update(shipped=shipped)
 
 
-def _engines():
-    """This process's engines; a pool worker's loaded at its first chunk (:func:`start_pool_worker`)."""
-    if "engines" not in _WORKER:
-        with open(_WORKER["shipped"].get(), "rb") as file:
-            _WORKER["engines"] = pickle.load(file)
+def _engines(copy):
+    """This process's engines: a pool worker's from ``copy`` (:func:`run_chunk`), loaded at its
+    first chunk of the call that wrote it, the previous call's let go first."""
+    if copy is not None and _WORKER.get("copy") != copy:
+        _WORKER.clear()
+        with open(copy[0], "rb") as file:
+            _WORKER.update(engines=pickle.load(file), copy=copy)
         gc.freeze()
     return _WORKER["engines"]
 
 
-def run_chunk(hand_number, grasp, approach, orient, preshapes, mu=None):
+def run_chunk(copy, hand_number, grasp, approach, orient, preshapes, mu=None):
     """Trials of the candidates ``grasp``, ``approach``, ``orient`` (n, 3), ``preshapes`` and
-    ``mu`` (n,) (:meth:`GraspEngine.run`) with hand ``hand_number``: their results, and when they
-    started and ended (``time.perf_counter`` seconds, one clock for every process of the machine
-    on Linux; a worker's first chunk starts once it has its engines)."""
-    engines = _engines()
+    ``mu`` (n,) (:meth:`GraspEngine.run`) with hand ``hand_number`` of the engines ``copy``: None
+    for this process's own (:func:`start_worker`), else (path, call) of the file they are pickled
+    in and the call that wrote it (a pool's worker may run several calls' chunks). Returns their
+    results, and when they started and ended (``time.perf_counter`` seconds, one clock for every
+    process of the machine on Linux; a worker's first chunk of a call starts once it has loaded
+    the engines)."""
+    engines = _engines(copy)
     start = time.perf_counter()
     if not len(grasp):
         return [], start, start

@@ -31,6 +31,7 @@ contacts (``contacts.parquet``): one row per contact; ``trial`` (row number in t
 
 import collections
 import concurrent.futures
+import itertools
 import os
 import pickle
 import tempfile
@@ -40,11 +41,12 @@ import time
 import numpy as np
 import pandas as pd
 
-from .. import pool, seeds
+from .. import seeds
 from ..allocator import objects_frozen
 from ..arrays import vectors
 from ..errors import WorkerError
 from ..geometry.mesh_query import grid_distances
+from ..pool import context as worker_context
 from .engine import (
     OUTCOMES,
     GraspEngine,
@@ -133,6 +135,48 @@ def chunks(hands, lengths, workers=1):
             yield hand, trials[chunk_of == chunk]
 
 
+class TrialPool:
+    """Trial worker processes that :func:`run_trials`' calls share, from the first call that
+    needs them to :meth:`close` (or the end of a ``with`` block): a call with one skips starting
+    its workers, and their first trials' one-off costs (numba's, numpy's and open3d's first calls,
+    the pages a fresh process writes), about 0.1 s a worker. As many processes as the most any call
+    asked for; each holds the engines of the last call it ran chunks of until the next.
+    For a process that runs trials call after call (an ablation, the bench); one call's workers
+    are its own, closed after it."""
+
+    def __init__(self):
+        self._executor, self._size = None, 0
+
+    def executor(self, size):
+        """The pool's ``concurrent.futures`` executor, with ``size`` worker processes or more."""
+        if size > self._size:
+            self.close()
+            self._executor, self._size = _executor(size), size
+        return self._executor
+
+    def close(self):
+        """End the worker processes (a call's later use starts new ones)."""
+        if self._executor is not None:
+            self._executor.shutdown(cancel_futures=True)
+        self._executor, self._size = None, 0
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *_):
+        self.close()
+
+
+def _executor(size):
+    """A pool of ``size`` trial worker processes (:func:`pipeline.trial.engine.start_pool_worker`),
+    forked from the server of :mod:`pipeline.pool` as its tasks need them."""
+    return concurrent.futures.ProcessPoolExecutor(size, worker_context(), initializer=start_pool_worker)
+
+
+#: numbers the calls whose engines a pool's workers load (a file's path may come again)
+_CALLS = itertools.count()
+
+
 def _digit_sums(numbers, base):
     """(n,) the sums of the digits of the (n,) non-negative int ``numbers`` written in ``base``."""
     numbers, sums = np.array(numbers, np.int64), np.zeros(len(numbers), np.int64)
@@ -145,7 +189,7 @@ def _digit_sums(numbers, base):
 # the caller's objects (its libraries', its tables) out of the collector's full passes, which the
 # trials' own objects set off: each walked them all, 0.13-0.15 s in the bench's process
 @objects_frozen()
-def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, timeline=None):
+def run_trials(surface, hands, tables, settings, *, workers=1, pool=None, progress=None, timeline=None):
     """One trial per row of each table (candidate columns).
 
     Parameters
@@ -165,6 +209,8 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
         first worker computes the object's distance grid meanwhile, the engines' costly part.
         A process that has run no trial yet (a stage's) runs none: ``workers`` workers take
         every chunk. Results do not depend on it.
+    pool : TrialPool, optional
+        Worker processes kept between calls; without it the call starts its own and ends them.
     progress : callable(int, int), optional
         Called with the number of trials just finished and the total.
     timeline : list, optional
@@ -231,28 +277,20 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
     # of the chunks to one more worker
     runs_chunks = workers == 1 or kernels_loaded()
     helpers = min(workers, len(parts)) - int(runs_chunks)
-    # the worker processes start while this one builds the engines, then wait on the queue
-    # ``shipped`` for the file that holds them, pickled (a pipe would move them 64 KB a write,
-    # each waiting for this thread to let go of the interpreter: a worker started 0.06 s late)
-    shipped = pool.context().SimpleQueue() if helpers > 0 else None
-    copy = None  # that file's path, once written
-    executor = (
-        concurrent.futures.ProcessPoolExecutor(
-            helpers, pool.context(), initializer=start_pool_worker, initargs=(shipped,)
-        )
-        if helpers > 0
-        else None
-    )
+    # the worker processes start (or are the pool's) while this one builds the engines; their
+    # chunks go once the engines are ``shipped``: pickled to a file (a pipe would move them 64 KB
+    # a write, each waiting for this thread to let go of the interpreter: a worker started 0.06 s
+    # late), which each worker loads at its first chunk
+    shipped, copy = threading.Event(), None  # copy: (the file's path, this call's number)
+    executor = None if helpers <= 0 else pool.executor(helpers) if pool else _executor(helpers)
 
-    def ship(engines):  # once, to every worker (with none, each fails its chunks)
+    def ship(engines):
         nonlocal copy
-        if copy is not None:
-            return
-        handle, copy = tempfile.mkstemp(prefix="engines-", suffix=".pickle")
+        handle, path = tempfile.mkstemp(prefix="engines-", suffix=".pickle")
         with os.fdopen(handle, "wb") as file:
             pickle.dump(engines, file, pickle.HIGHEST_PROTOCOL)
-        for _ in range(helpers):
-            shipped.put(copy)
+        copy = (path, next(_CALLS))
+        shipped.set()
 
     # one thread per worker process forks it (its first submit) while this one builds the
     # engines, then keeps it busy, chunk after chunk: the fork is a wait on the fork server
@@ -268,8 +306,9 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
                 )
             else:
                 grid.result()
-            while number is not None:
-                finish(number, process, *executor.submit(run_chunk, *chunk_of(number)).result())
+            shipped.wait()
+            while copy is not None and number is not None:  # no copy: the engines' build failed
+                finish(number, process, *executor.submit(run_chunk, copy, *chunk_of(number)).result())
                 number = take()
         except BaseException as error:  # noqa: BLE001 (raised again in the caller's thread)
             if not grid.done():
@@ -289,6 +328,7 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
                 object_mesh(surface, settings, (lambda: grid.result().result()) if executor else None) if used else None
             )
         except concurrent.futures.BrokenExecutor as error:
+            failed.append(error)
             raise _worker_error(surface, total, workers) from error
         engines = {number: GraspEngine(surface, hands[number], settings, mesh=mesh) for number in used}
         built = time.perf_counter()
@@ -300,7 +340,7 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
         start_worker(engines)
         try:
             while runs_chunks and (number := take()) is not None:
-                finish(number, 0, *run_chunk(*chunk_of(number)))
+                finish(number, 0, *run_chunk(None, *chunk_of(number)))
         except BaseException:
             with lock:
                 left.clear()
@@ -310,10 +350,15 @@ def run_trials(surface, hands, tables, settings, *, workers=1, progress=None, ti
             for feeder in feeders:
                 feeder.join()
     finally:
-        if executor:
-            ship({})  # the engines' build failed: the workers end rather than wait
+        shipped.set()  # the feeders go on if the engines' build failed, with nothing to send
+        broken = any(isinstance(error, concurrent.futures.BrokenExecutor) for error in failed)
+        if pool and broken:
+            pool.close()
+        if executor and not pool:
             # the workers' exit (0.015 s) and the removal of their copy go on in the background
-            threading.Thread(target=_close_pool, args=(executor, shipped, copy), name="close trial pool").start()
+            threading.Thread(target=_close_pool, args=(executor, copy), name="close trial pool").start()
+        elif copy:
+            os.unlink(copy[0])  # every chunk has run: the workers have loaded it
     if failed:
         if isinstance(failed[0], concurrent.futures.BrokenExecutor):
             raise _worker_error(surface, total, workers) from failed[0]
@@ -335,12 +380,12 @@ def _worker_error(surface, total, workers):
     )
 
 
-def _close_pool(executor, shipped, copy):
-    """Wait for ``executor``'s workers to end, then close the queue ``shipped`` and remove the
-    file ``copy`` they read their engines from."""
+def _close_pool(executor, copy):
+    """Wait for ``executor``'s workers to end, then remove the file of ``copy`` (if any) they
+    read their engines from."""
     executor.shutdown(cancel_futures=True)
-    shipped.close()
-    os.unlink(copy)
+    if copy:
+        os.unlink(copy[0])
 
 
 def trial_tables(surface, candidates, hands, *, spheres_per_object, baseline_trials, seed=0):
