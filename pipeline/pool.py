@@ -24,6 +24,15 @@ PRELOAD = [
     "pipeline.kernel_cache",
 ]
 
+#: the server's environment beside the caller's, which its workers inherit: OpenBLAS on the
+#: calling thread alone. A process forked from one whose OpenBLAS has helper threads starts them
+#: anew at its first call that sets or uses them (threadpoolctl's, in a trial's grading:
+#: :mod:`pipeline.threads`), and each spins about 0.1 s before it sleeps, on the cores the trial
+#: processes fill: 0.2 s of a core per worker, at its first chunk (a fresh worker's 256 trials of
+#: Barrett on the duck took 0.52 s there, 0.42-0.44 s after). The workers, one per core, never
+#: split a product between threads: their trials' results are the same
+SERVER_ENVIRONMENT = {"OPENBLAS_NUM_THREADS": "1"}
+
 
 def default_workers(workers):
     """``workers`` processes, or every core the process may use when 0."""
@@ -31,15 +40,24 @@ def default_workers(workers):
 
 
 def context():
-    """The ``multiprocessing`` context of the trial workers."""
-    ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload(PRELOAD)
-    return ctx
+    """The ``multiprocessing`` context of the trial workers, their fork server running (:func:`start`)."""
+    start()
+    return multiprocessing.get_context("forkserver")
 
 
 def start():
-    """Start the fork server now (it imports :data:`PRELOAD` while the caller goes on)."""
+    """Start the fork server now, if it is not running: it imports :data:`PRELOAD` while the
+    caller goes on, in the caller's environment and :data:`SERVER_ENVIRONMENT`."""
     from multiprocessing import forkserver
 
-    context()
-    forkserver.ensure_running()
+    multiprocessing.get_context("forkserver").set_forkserver_preload(PRELOAD)
+    saved = {name: os.environ.get(name) for name in SERVER_ENVIRONMENT}
+    os.environ.update(SERVER_ENVIRONMENT)
+    try:
+        forkserver.ensure_running()
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                del os.environ[name]
+            else:
+                os.environ[name] = value

@@ -600,6 +600,24 @@ def test_a_pool_worker_runs_every_built_in_hand_without_importing_trimesh(tmp_pa
             assert len(outcomes) == 2 and set(outcomes) <= set(OUTCOMES) and not imported, hand.name
 
 
+def test_a_pool_worker_grades_on_one_blas_thread_without_starting_blas_helpers():
+    import concurrent.futures
+    import os
+
+    from pipeline import pool
+    from pipeline.trial.engine import start_pool_worker
+    from worker_probe import blas_threads_and_threads_gained
+
+    before = os.environ.get("OPENBLAS_NUM_THREADS")
+    pool.start()
+    assert os.environ.get("OPENBLAS_NUM_THREADS") == before  # the caller's environment as it was
+    with concurrent.futures.ProcessPoolExecutor(1, pool.context(), initializer=start_pool_worker) as executor:
+        counts, gained = executor.submit(blas_threads_and_threads_gained).result()
+    # numpy's and scipy's OpenBLAS, each on one thread; a worker forked from a server whose
+    # OpenBLAS had helpers would start them anew here (one per other CPU, each spinning 0.1 s)
+    assert counts and set(counts) == {1} and gained == 0
+
+
 def test_run_trials_keeps_the_callers_objects_out_of_the_collectors_passes_while_it_runs():
     assert _freeze_count() == 0, "the test process froze objects before the test"
     counts = []
