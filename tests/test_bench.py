@@ -278,10 +278,10 @@ def test_the_chunks_bench_runs_the_chunks_forked_alone_and_at_once(tmp_path):
 
     log = tmp_path / "runs"
 
-    class Engine:  # appends each run's process and first candidate to a file the forks share
+    class Engine:  # appends each run's process, first candidate and count to a file the forks share
         def run(self, grasp, approach, orient, preshapes):
             with open(log, "a") as file:
-                file.write(f"{os.getpid()} {int(grasp[0, 0])}\n")
+                file.write(f"{os.getpid()} {int(grasp[0, 0])} {len(grasp)}\n")
 
     count = 10
     grasp = np.arange(count, dtype=float)[:, None] * np.ones(3)
@@ -293,15 +293,21 @@ def test_the_chunks_bench_runs_the_chunks_forked_alone_and_at_once(tmp_path):
     firsts = [int(trials[0]) for _, trials in chunks([0], [count], 2)]
     runs = [line.split() for line in log.read_text().splitlines()]
     # each round: the whole and the chunks here, then each chunk forked alone, twice in its copy,
-    # then both forked at once, twice
+    # then both forked at once, twice, then the whole here again, untimed (the pages the forks
+    # shared written again before the next round's timed runs)
     here = str(os.getpid())
-    assert [pid == here for pid, _ in runs] == ([True] * 3 + [False] * 8) * 2
+    assert [pid == here for pid, *_ in runs] == ([True] * 3 + [False] * 8 + [True]) * 2
+    assert runs[11][1:] == runs[0][1:] == ["0", str(count)]  # the whole sample
     alone, together = runs[3:7], runs[7:11]
-    assert [int(first) for _, first in alone] == [firsts[0], firsts[0], firsts[1], firsts[1]]
+    assert [int(first) for _, first, _ in alone] == [firsts[0], firsts[0], firsts[1], firsts[1]]
     assert alone[0][0] == alone[1][0] != alone[2][0] == alone[3][0]  # a copy runs its chunk again
     # at once, each run of both copies before the next
-    assert sorted(int(first) for _, first in together[:2]) == sorted(int(first) for _, first in together[2:]) == firsts
-    assert len({pid for pid, _ in runs[3:11]}) == 4  # a fresh copy for every chunk, each time
+    assert (
+        sorted(int(first) for _, first, _ in together[:2])
+        == sorted(int(first) for _, first, _ in together[2:])
+        == firsts
+    )
+    assert len({pid for pid, *_ in runs[3:11]}) == 4  # a fresh copy for every chunk, each time
 
 
 def test_the_together_factor_is_the_median_of_the_rounds_longest_together_over_alone():
